@@ -1,0 +1,67 @@
+# Developer and CI entry points for joint_space_control.
+#
+#   make venv          .venv with ROS 2 Jazzy + deps from PyPI, package installed editable
+#   make test          ruff check, ruff format --check, pytest   (what .ci/run runs first)
+#   make demo          short end-to-end demo into out/demo
+#   make colcon-check  colcon build into build/colcon_ws and check the ament layout
+#   make lint / format / clean
+#
+# Every tool is called through .venv/bin/... explicitly: nothing needs `source`.
+
+SHELL := /bin/bash
+.DEFAULT_GOAL := test
+
+VENV := .venv
+PY := $(VENV)/bin/python
+# Python 3.11 when installed, else the default python3 (>= 3.10, see setup.py).
+PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3 2>/dev/null)
+# Re-installs when the packaging changes.
+STAMP := $(VENV)/.install-stamp
+# Console scripts that must land in .venv/bin (checked after the install, see setup.cfg).
+VENV_SCRIPTS := sim_bridge pd_gravity_controller jsc
+
+.PHONY: venv demo test lint format colcon-check clean distclean
+
+venv: $(STAMP)
+
+# `pip install -e` goes through the PEP 660 editable wheel (pyproject.toml exists, so pip
+# uses the PEP 517 setuptools backend): pip itself writes the console scripts into
+# .venv/bin, and setup.cfg's [develop]/[install] script dirs (meant for colcon's
+# `setup.py install/develop`) do not apply. The loop below fails loudly should that change.
+$(STAMP): setup.py setup.cfg
+	@test -n "$(PYTHON)" || { echo "error: no python3.11 or python3 on PATH" >&2; exit 1; }
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --upgrade pip
+	$(PY) -m pip install -e '.[pypi,test]'
+	@for exe in $(VENV_SCRIPTS); do \
+	  test -x $(VENV)/bin/$$exe || { \
+	    echo "error: $(VENV)/bin/$$exe missing after pip install -e (scripts redirected?)" >&2; \
+	    exit 1; }; \
+	done
+	touch $@
+
+demo: venv
+	$(VENV)/bin/jsc demo --out out/demo
+
+test: venv
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+	$(PY) -m pytest
+
+lint: venv
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+
+format: venv
+	$(VENV)/bin/ruff format .
+	$(VENV)/bin/ruff check --fix .
+
+colcon-check: venv
+	COLCON=$(VENV)/bin/colcon bash .ci/colcon_check.sh
+
+clean:
+	rm -rf build install log out *.egg-info .pytest_cache .ruff_cache .hypothesis
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV)

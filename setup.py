@@ -1,0 +1,72 @@
+"""Packaging of the `joint_space_control` ROS 2 package (ament_python).
+
+One setup.py serves both supported installs (see INTERFACES.md, "Package"):
+
+- colcon build in a ROS 2 workspace: data_files put package.xml, the ament index marker,
+  configs and URDFs under share/, and setup.cfg sends the console scripts to
+  lib/joint_space_control/ where `ros2 run` looks for them;
+- pip into a virtual environment: `pip install -e '.[pypi,test]'` (what `make venv` does)
+  pulls ROS 2 Jazzy and the other runtime dependencies from PyPI through the `pypi` extra.
+
+install_requires holds only setuptools on purpose: in a ROS install rclpy, the message
+packages and most Python deps come from apt/rosdep and carry no PyPI metadata, so any
+requirement listed there would make the colcon build's requirement checks fail.
+"""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE_NAME = "joint_space_control"
+
+# Runtime dependencies when installing from PyPI (no ROS apt packages on the machine).
+PYPI_REQUIRES = [
+    "ros-jazzy-rclpy[fastrtps]>=7.1,<8",
+    "ros-jazzy-common-interfaces>=5.3,<6",
+    "pin>=3,<5",
+    "numpy>=1.26,<3",
+    "pybullet>=3.2.5,<4",
+    "rosbags>=0.10,<1",
+    "matplotlib>=3.8,<4",
+    "pyyaml>=6,<7",
+]
+
+# Test, lint and build-check tools (`make test`, `make colcon-check`, .ci/run).
+TEST_REQUIRES = [
+    "pytest>=8,<10",
+    "pytest-timeout>=2.2,<3",
+    "hypothesis>=6.100,<7",
+    # Pinned to one minor series: `ruff format --check` output changes between minors.
+    "ruff>=0.17,<0.18",
+    "mcap-ros2-support>=0.5,<1",
+    "colcon-common-extensions>=0.3,<1",
+]
+
+setup(
+    name=PACKAGE_NAME,
+    version="0.1.0",
+    description="Joint-space control of robot arms on ROS 2 with a PyBullet simulator.",
+    license="Apache-2.0",
+    maintainer="joint_space_control developers",
+    maintainer_email="jsc@example.com",
+    python_requires=">=3.10",
+    packages=find_packages(exclude=["tests", "tests.*"]),
+    package_data={f"{PACKAGE_NAME}.robots": ["urdf/*.urdf"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE_NAME}"]),
+        (f"share/{PACKAGE_NAME}", ["package.xml"]),
+        (f"share/{PACKAGE_NAME}/config", sorted(glob("config/*.yaml"))),
+        (f"share/{PACKAGE_NAME}/config/experiments", sorted(glob("config/experiments/*.yaml"))),
+        (f"share/{PACKAGE_NAME}/urdf", sorted(glob(f"{PACKAGE_NAME}/robots/urdf/*.urdf"))),
+    ],
+    install_requires=["setuptools"],
+    extras_require={"pypi": PYPI_REQUIRES, "test": TEST_REQUIRES},
+    zip_safe=True,
+    entry_points={
+        "console_scripts": [
+            "sim_bridge = sim_bridge.node:main",
+            "pd_gravity_controller = joint_space_control.nodes.pd_gravity_controller:main",
+            "jsc = joint_space_control.cli.main:main",
+        ],
+    },
+)
