@@ -1,0 +1,88 @@
+r"""PD control with gravity compensation and its variants (shared THEORY.md §2).
+
+    τ = ĝ + K_P (q_d − q) − K_D q̇ + K_I ξ,      ξ̇ = q_d − q          [N·m]
+
+with the gravity term ĝ chosen by the mode:
+- ``full``: ĝ = g(q), global asymptotic stability for any K_P ≻ 0, K_D ≻ 0;
+- ``none``: ĝ = 0, pure PD: the arm settles at q_e with g(q_e) = K_P (q_d − q_e);
+- ``desired``: ĝ = g(q_d), constant, stable when every K_P,i > α ≥ ‖∂g/∂q‖.
+A constant torque u (the iterative gravity estimate u_i) can be added to any mode.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from joint_space_control.laws.gains import PDGains
+
+
+class GravityCompensation(str, Enum):
+    FULL = "full"
+    NONE = "none"
+    DESIRED = "desired"
+
+    @classmethod
+    def parse(cls, value: str) -> GravityCompensation:
+        try:
+            return cls(value)
+        except ValueError:
+            names = ", ".join(m.value for m in cls)
+            raise ValueError(f"gravity_compensation '{value}' is not one of: {names}") from None
+
+
+@dataclass(frozen=True)
+class TorqueSplit:
+    """The parts of one command [N·m]: feedback (PD + integral), model (inertial/Coriolis
+    feedforward), gravity (ĝ and any constant estimate), and their sum before clamping."""
+
+    feedback: np.ndarray
+    model: np.ndarray
+    gravity: np.ndarray
+
+    @property
+    def total(self) -> np.ndarray:
+        return self.feedback + self.model + self.gravity
+
+
+def pd_gravity_torque(
+    q: np.ndarray, dq: np.ndarray, q_des: np.ndarray, gains: PDGains, gravity: np.ndarray
+) -> np.ndarray:
+    r"""PD with gravity compensation, τ = ĝ + K_P (q_d − q) − K_D q̇  [N·m]."""
+    return gravity + gains.kp * (q_des - q) - gains.kd * dq
+
+
+def pid_torque_split(
+    q: np.ndarray,
+    dq: np.ndarray,
+    q_des: np.ndarray,
+    integral: np.ndarray,
+    gains: PDGains,
+    gravity: np.ndarray,
+) -> TorqueSplit:
+    r"""τ = ĝ + K_P (q_d − q) − K_D q̇ + K_I ξ, split into feedback and gravity parts."""
+    feedback = gains.kp * (q_des - q) - gains.kd * dq + gains.ki * integral
+    return TorqueSplit(feedback, np.zeros_like(feedback), gravity)
+
+
+def integrate_error(
+    integral: np.ndarray,
+    error: np.ndarray,
+    dt: float,
+    gains: PDGains,
+    tau_unclamped: np.ndarray,
+    effort_limits: np.ndarray,
+) -> np.ndarray:
+    r"""One step of ξ̇ = q_d − q with anti-windup (conditional integration and clamping).
+
+    A joint whose command is saturated does not integrate an error that would push it
+    further into saturation; and |K_I ξ| never exceeds the effort limit. Returns a new array.
+    """
+    pushing = np.sign(gains.ki * error) == np.sign(tau_unclamped)
+    saturated = (np.abs(tau_unclamped) >= effort_limits) & pushing
+    updated = np.where(saturated, integral, integral + error * dt)
+    with np.errstate(divide="ignore"):
+        bound = np.where(gains.ki > 0, effort_limits / gains.ki, np.inf)
+    return np.where(gains.ki > 0, np.clip(updated, -bound, bound), 0.0)

@@ -1,0 +1,235 @@
+"""What every joint controller node shares: parameters, topics, references, the tick.
+
+A concrete controller supplies its extra parameters, builds an immutable configuration from
+parameter values (raising ``ValueError`` with a reason for invalid ones) and computes the
+torque split from the measured state and the reference sample. Everything here is message
+handling and bookkeeping; the maths is in :mod:`joint_space_control.laws`.
+
+Topics (relative names): subscribes ``joint_states`` and ``reference``; publishes
+``effort_command`` and ``~/state``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+
+from joint_space_control.laws.pd_gravity import TorqueSplit
+from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
+from joint_space_control.model.robots import resolve_robot
+from joint_space_control.nodes import parameters as P
+from joint_space_control.nodes.messages import (
+    CONTROL_QOS,
+    REFERENCE_QOS,
+    JointOrder,
+    joint_state_arrays,
+    make_joint_state,
+    state_message,
+    stamp_to_ns,
+    trajectory_from_msg,
+)
+from joint_space_control.trajectories.reference import Reference, Sample, Trajectory
+
+TRIGGERS = ("timer", "state")
+#: Longest time step integrated at once [s]; longer gaps (start-up, pauses) are cut.
+MAX_DT = 0.1
+
+COMMON_PARAMETERS = (
+    P.ParamSpec("robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda",
+                read_only=True),
+    P.ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
+    P.ParamSpec("joints", [], "Controlled joints in command order (default: the robot's)",
+                read_only=True, dynamic=True),
+    P.ParamSpec("rate", 1000.0, "Control rate [Hz] with trigger=timer, > 0", read_only=True),
+    P.ParamSpec("trigger", "timer",
+                "timer: command at 'rate' from the latest state; state: answer every "
+                "joint state once (lockstep)", read_only=True),
+    P.ParamSpec("state_timeout", 0.1,
+                "Stop commanding when the newest joint state is older than this [s], > 0"),
+    P.ParamSpec("kp", 100.0, "Proportional gain K_P [N·m/rad], one value or one per joint, "
+                "> 0", dynamic=True),
+    P.ParamSpec("kd", 20.0, "Derivative gain K_D [N·m·s/rad], one value or one per joint, "
+                ">= 0", dynamic=True),
+)
+
+
+class JointController(Node):
+    """Base class of the controller nodes (not a node on its own)."""
+
+    #: Extra parameters of the concrete controller.
+    LAW_PARAMETERS: tuple[P.ParamSpec, ...] = ()
+
+    def __init__(self, node_name: str, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self._specs = COMMON_PARAMETERS + self.LAW_PARAMETERS
+        P.declare(self, self._specs)
+        values = P.current_values(self, self._specs)
+        spec = resolve_robot(values["robot"] if not values["urdf_path"] else "",
+                             values["urdf_path"])
+        self.model = RobotModel(spec, P.names(values, "joints") or None,
+                                self.model_perturbation(values))
+        self.joints = self.model.joint_names
+        self.n = len(self.joints)
+        self.effort_limits = self.model.effort_limits
+        self.trigger = P.choice(values, "trigger", TRIGGERS)
+        rate = P.positive(values, "rate")
+        self.config = self.build_config(values)
+        self._state_timeout = P.positive(values, "state_timeout")
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self._order = JointOrder(self.joints)
+        self._q: np.ndarray | None = None
+        self._dq: np.ndarray | None = None
+        self._state_ns = -1
+        self._answered_ns = -1
+        self._t_last: float | None = None
+        self._reference: Reference | None = None
+        self._pending: list[Trajectory] = []
+        self._command = make_joint_state(self.joints)
+        self._state = state_message(self.joints)
+        self._silent = False
+
+        self._pub = self.create_publisher(JointState, "effort_command", CONTROL_QOS)
+        self._state_pub = self.create_publisher(type(self._state), "~/state", CONTROL_QOS)
+        # The reference subscription is created first, so that a reference and a joint state
+        # that are both waiting are handled in that order (deterministic lockstep start).
+        self.create_subscription(JointTrajectory, "reference", self._on_reference, REFERENCE_QOS)
+        self.create_subscription(JointState, "joint_states", self._on_joint_state, CONTROL_QOS)
+        if self.trigger == "timer":
+            self.create_timer(1.0 / rate, self._on_timer)
+        self.get_logger().info(
+            f"{node_name}: {spec.name}, joints {list(self.joints)}, trigger={self.trigger}"
+            + (f" at {rate:g} Hz" if self.trigger == "timer" else "")
+        )
+
+    # -- to be provided by the concrete controller ------------------------------------
+    def model_perturbation(self, values: dict[str, Any]) -> ModelPerturbation:
+        """The controller model's deliberate differences from the URDF (none by default)."""
+        return ModelPerturbation()
+
+    def build_config(self, values: dict[str, Any]) -> Any:
+        raise NotImplementedError
+
+    def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
+        raise NotImplementedError
+
+    def after_command(self, ref: Sample, q: np.ndarray, tau_unclamped: np.ndarray,
+                      dt: float) -> None:
+        """Update internal state (integrators) once the command is out."""
+
+    def reset_state(self) -> None:
+        """Forget internal state (integrators): bumpless start after a gap or restart."""
+
+    # -- parameters --------------------------------------------------------------------
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        values = P.current_values(self, self._specs)
+        for p in params:
+            if p.name in values:
+                values[p.name] = p.value
+        try:
+            config = self.build_config(values)
+            timeout = P.positive(values, "state_timeout")
+        except ValueError as err:
+            self.get_logger().warning(f"rejected parameter update: {err}")
+            return SetParametersResult(successful=False, reason=str(err))
+        self.config = config  # swapped whole; a tick reads it once
+        self._state_timeout = timeout
+        self.get_logger().info(
+            "parameters updated: " + ", ".join(f"{p.name}={p.value}" for p in params)
+        )
+        return SetParametersResult(successful=True)
+
+    # -- inputs ------------------------------------------------------------------------
+    def _now(self) -> float:
+        """The controller's time [s]: the newest state's stamp when answering states, else
+        the node clock (simulation time with use_sim_time)."""
+        if self.trigger == "state":
+            return max(self._state_ns, 0) * 1e-9
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_reference(self, msg: JointTrajectory) -> None:
+        try:
+            traj = trajectory_from_msg(msg, self._order, self._now(), 0)
+        except ValueError as err:
+            self.get_logger().warning(f"rejected reference: {err}", throttle_duration_sec=1.0)
+            return
+        self._pending = [p for p in self._pending if p.start < traj.start] + [traj]
+        self.get_logger().info(
+            f"reference accepted: {len(traj.times)} point(s) from t={traj.start:.3f} s"
+        )
+
+    def _on_joint_state(self, msg: JointState) -> None:
+        try:
+            q, dq = joint_state_arrays(msg, self._order)
+        except ValueError as err:
+            self.get_logger().warning(f"rejected joint state: {err}", throttle_duration_sec=1.0)
+            return
+        stamp = stamp_to_ns(msg.header.stamp)
+        if stamp < self._state_ns:
+            self.get_logger().warning("joint state time went backwards: restarting from the "
+                                      "measured configuration")
+            self._restart()
+        self._q, self._dq, self._state_ns = q, dq, stamp
+        if self.trigger == "state":
+            if stamp == self._answered_ns:  # the same state again: repeat the answer
+                self._pub.publish(self._command)
+                return
+            self._tick(stamp * 1e-9)
+
+    def _on_timer(self) -> None:
+        if self._q is None:
+            return
+        now = self._now()
+        if now - self._state_ns * 1e-9 > self._state_timeout:
+            if not self._silent:
+                self.get_logger().error(
+                    f"no joint state for more than {self._state_timeout} s: not commanding"
+                )
+                self._silent = True
+            return
+        if self._silent:
+            self.get_logger().info("joint states are back: commanding again")
+            self._silent = False
+            self._restart()
+        self._tick(now)
+
+    def _restart(self) -> None:
+        self._reference = None
+        self._pending = []
+        self._t_last = None
+        self.reset_state()
+
+    # -- the tick ----------------------------------------------------------------------
+    def _sample(self, t: float) -> Sample:
+        if self._reference is None:  # hold the configuration measured at start
+            self._reference = Reference.hold(self._q, t)
+        while self._pending and self._pending[0].start <= t:
+            traj = self._pending.pop(0)
+            self._reference = Reference(traj, self._reference.sample(traj.start))
+        return self._reference.sample(t)
+
+    def _tick(self, t: float) -> None:
+        q, dq = self._q, self._dq
+        dt = 0.0 if self._t_last is None else min(max(t - self._t_last, 0.0), MAX_DT)
+        self._t_last = t
+        ref = self._sample(t)
+        split = self.compute(q, dq, ref, dt)
+        unclamped = split.total
+        tau = np.clip(unclamped, -self.effort_limits, self.effort_limits)
+        cmd = self._command
+        cmd.header.stamp.sec, cmd.header.stamp.nanosec = divmod(self._state_ns, 1_000_000_000)
+        cmd.effort = tau.tolist()
+        self._pub.publish(cmd)
+        self._answered_ns = self._state_ns
+        self._state.data = np.concatenate((
+            [self._state_ns * 1e-9], ref.q, ref.dq, ref.ddq, q, dq, ref.q - q, ref.dq - dq,
+            split.feedback, split.model, split.gravity, unclamped, tau,
+        )).tolist()
+        self._state_pub.publish(self._state)
+        self.after_command(ref, q, unclamped, dt)

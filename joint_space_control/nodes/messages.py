@@ -1,0 +1,168 @@
+"""Message ↔ array conversion and validation at the node boundary (shared STYLE.md §3).
+
+Every function here either returns arrays in the controlled-joint order or raises
+``ValueError`` with a reason that the node logs (throttled) before dropping the message.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from trajectory_msgs.msg import JointTrajectory
+
+from joint_space_control.trajectories.reference import Trajectory
+
+#: Control topics: the newest sample is the only one that matters; reliable so that a
+#: lockstep exchange never loses the one message it waits for.
+CONTROL_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+#: References: a few may be queued so that none is lost while a tick runs.
+REFERENCE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+#: Rows of the controller state matrix published on ``~/state`` (see README).
+STATE_FIELDS = (
+    "q_d", "dq_d", "ddq_d", "q", "dq", "error", "derror",
+    "tau_feedback", "tau_model", "tau_gravity", "tau_unclamped", "tau",
+)
+
+
+def stamp_to_ns(stamp: Time) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def ns_to_stamp(ns: int) -> Time:
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+class JointOrder:
+    """Maps the joint names of incoming messages to the controlled-joint order.
+
+    The permutation is cached for the last name list seen, so steady traffic costs one
+    tuple comparison per message.
+    """
+
+    def __init__(self, joints: Sequence[str]) -> None:
+        self.joints = tuple(joints)
+        self._known = set(self.joints)
+        self._names: tuple[str, ...] | None = None
+        self._index = np.arange(len(self.joints))
+
+    def index(self, names: Sequence[str], allow_extra: bool) -> np.ndarray:
+        """Position in ``names`` of each controlled joint. Raises for a missing or duplicated
+        joint, and for a name that is not controlled unless ``allow_extra``."""
+        names = tuple(names)
+        if names == self._names:
+            return self._index
+        if len(set(names)) != len(names):
+            raise ValueError(f"duplicated joint names {list(names)}")
+        missing = [j for j in self.joints if j not in names]
+        if missing:
+            raise ValueError(f"missing joints {missing}")
+        if not allow_extra:
+            unknown = [name for name in names if name not in self._known]
+            if unknown:
+                raise ValueError(f"unknown joints {unknown}")
+        lookup = {name: i for i, name in enumerate(names)}
+        self._index = np.array([lookup[j] for j in self.joints])
+        self._names = names
+        return self._index
+
+
+def _field(values: Sequence[float], size: int, what: str) -> np.ndarray:
+    if len(values) != size:
+        raise ValueError(f"{len(values)} {what} values for {size} names")
+    arr = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"non-finite {what}")
+    return arr
+
+
+def joint_state_arrays(msg: JointState, order: JointOrder) -> tuple[np.ndarray, np.ndarray]:
+    """(q, q̇) of the controlled joints; other joints in the message are ignored."""
+    idx = order.index(msg.name, allow_extra=True)
+    size = len(msg.name)
+    q = _field(msg.position, size, "position")[idx]
+    dq = _field(msg.velocity, size, "velocity")[idx]
+    return q, dq
+
+
+def effort_arrays(msg: JointState, order: JointOrder) -> np.ndarray:
+    """Effort command of every controlled joint; unknown names are an error."""
+    idx = order.index(msg.name, allow_extra=False)
+    return _field(msg.effort, len(msg.name), "effort")[idx]
+
+
+def float_array(msg: Float64MultiArray, size: int) -> np.ndarray:
+    """A ros2_control-style command: exactly ``size`` finite values in joint order."""
+    return _field(msg.data, size, "command")
+
+
+def make_joint_state(joints: Sequence[str]) -> JointState:
+    """A reusable JointState with the names filled in."""
+    msg = JointState()
+    msg.name = list(joints)
+    return msg
+
+
+def trajectory_from_msg(
+    msg: JointTrajectory, order: JointOrder, now: float, origin_ns: int
+) -> Trajectory:
+    """Validate a JointTrajectory for the controlled joints.
+
+    ``header.stamp`` is the start time in the controller's clock (zero means ``now``);
+    times are returned in seconds after ``origin_ns``, the controller's time origin. Every
+    controlled joint must be present, no unknown or duplicated names; positions are required
+    on every point, velocities and accelerations are optional but, when given, complete.
+    """
+    if not msg.points:
+        raise ValueError("trajectory has no points")
+    idx = order.index(msg.joint_names, allow_extra=False)
+    size = len(msg.joint_names)
+    times, positions, velocities, accelerations = [], [], [], []
+    for k, point in enumerate(msg.points):
+        times.append(point.time_from_start.sec + 1e-9 * point.time_from_start.nanosec)
+        positions.append(_field(point.positions, size, f"point {k} position")[idx])
+        if len(point.velocities):
+            velocities.append(_field(point.velocities, size, f"point {k} velocity")[idx])
+        if len(point.accelerations):
+            accelerations.append(
+                _field(point.accelerations, size, f"point {k} acceleration")[idx]
+            )
+    for name, given in (("velocities", velocities), ("accelerations", accelerations)):
+        if given and len(given) != len(positions):
+            raise ValueError(f"{name} given on some points only")
+    stamp = stamp_to_ns(msg.header.stamp)
+    start = now if stamp == 0 else (stamp - origin_ns) * 1e-9
+    return Trajectory.build(
+        start, np.array(times), np.array(positions),
+        np.array(velocities) if velocities else None,
+        np.array(accelerations) if accelerations else None,
+    )
+
+
+def state_message(joints: Sequence[str]) -> Float64MultiArray:
+    """A reusable ``~/state`` message: data[0] is the stamp [s] of the joint state answered,
+    then a (field × joint) row-major matrix, rows named by ``layout.dim[0].label``."""
+    msg = Float64MultiArray()
+    n = len(joints)
+    msg.layout.dim = [
+        MultiArrayDimension(label=",".join(STATE_FIELDS), size=len(STATE_FIELDS),
+                            stride=len(STATE_FIELDS) * n),
+        MultiArrayDimension(label=",".join(joints), size=n, stride=n),
+    ]
+    msg.layout.data_offset = 1
+    return msg

@@ -1,0 +1,38 @@
+"""The ``main`` shared by every node executable: init, spin, clean shutdown."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+
+
+def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None:
+    """Create the node and spin it until Ctrl-C or SIGTERM (both shut rclpy down cleanly).
+
+    A configuration error (unknown robot, invalid parameter at start-up) is reported on one
+    line and ends the process with exit code 2 instead of a traceback.
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            node = factory()
+        except ValueError as err:
+            print(f"error: {err}", file=sys.stderr)
+            sys.exit(2)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            close = getattr(node, "close", None)
+            if close is not None:
+                close()
+            node.destroy_node()
+        rclpy.try_shutdown()

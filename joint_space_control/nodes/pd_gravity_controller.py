@@ -1,0 +1,96 @@
+"""``pd_gravity_controller``: PD + gravity compensation family (shared THEORY.md §2).
+
+    τ = ĝ + u + K_P (q_d − q) − K_D q̇ + K_I ∫(q_d − q) dt,   clamped to the effort limits
+
+``gravity_compensation`` picks ĝ: ``full`` g(q), ``none`` 0, ``desired`` g(q_d); ``ki`` > 0
+adds integral action (with anti-windup); ``gravity_estimate`` is the constant u of the
+iterative gravity estimation. All of them can be changed while the node runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from joint_space_control.laws.gains import PDGains
+from joint_space_control.laws.pd_gravity import (
+    GravityCompensation,
+    TorqueSplit,
+    integrate_error,
+    pid_torque_split,
+)
+from joint_space_control.model.dynamics import per_joint
+from joint_space_control.nodes import parameters as P
+from joint_space_control.nodes.controller_base import JointController
+from joint_space_control.nodes.node_main import run_node
+from joint_space_control.trajectories.reference import Sample
+
+
+@dataclass(frozen=True)
+class PDConfig:
+    gains: PDGains
+    gravity: GravityCompensation
+    gravity_estimate: np.ndarray
+
+
+class PDGravityController(JointController):
+    LAW_PARAMETERS = (
+        P.ParamSpec("gravity_compensation", "full",
+                    "Gravity term: full = g(q) | none = pure PD | desired = g(q_d)"),
+        P.ParamSpec("ki", 0.0, "Integral gain K_I [N·m/(rad·s)], one value or one per joint, "
+                    ">= 0; anti-windup at the effort limits", dynamic=True),
+        P.ParamSpec("gravity_estimate", 0.0, "Constant torque u [N·m] added to the law, one "
+                    "value or one per joint (iterative gravity estimation)", dynamic=True),
+    )
+
+    def __init__(self, **kwargs: Any) -> None:
+        self._integral: np.ndarray | None = None
+        self._g_des_key: bytes | None = None
+        self._g_des = None
+        super().__init__("pd_gravity_controller", **kwargs)
+        self._integral = np.zeros(self.n)
+
+    def build_config(self, values: dict[str, Any]) -> PDConfig:
+        n = self.n
+        gains = PDGains.build(n, P.numbers(values, "kp"), P.numbers(values, "kd"),
+                              P.numbers(values, "ki"))
+        mode = GravityCompensation.parse(values["gravity_compensation"])
+        estimate = per_joint(P.numbers(values, "gravity_estimate"), n, "gravity_estimate")
+        return PDConfig(gains, mode, estimate)
+
+    def _gravity(self, q: np.ndarray, q_des: np.ndarray, mode: GravityCompensation) -> np.ndarray:
+        if mode is GravityCompensation.FULL:
+            return self.model.gravity(q)
+        if mode is GravityCompensation.DESIRED:
+            key = q_des.tobytes()
+            if key != self._g_des_key:  # g(q_d) is constant for a set-point: compute once
+                self._g_des, self._g_des_key = self.model.gravity(q_des), key
+            return self._g_des
+        return np.zeros(self.n)
+
+    def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
+        config = self.config
+        gravity = self._gravity(q, ref.q, config.gravity) + config.gravity_estimate
+        return pid_torque_split(q, dq, ref.q, self._integral, config.gains, gravity)
+
+    def after_command(self, ref: Sample, q: np.ndarray, tau_unclamped: np.ndarray,
+                      dt: float) -> None:
+        gains = self.config.gains
+        if np.any(gains.ki > 0):
+            self._integral = integrate_error(self._integral, ref.q - q, dt, gains,
+                                             tau_unclamped, self.effort_limits)
+        elif np.any(self._integral):
+            self._integral = np.zeros(self.n)
+
+    def reset_state(self) -> None:
+        self._integral = np.zeros(self.n)
+
+
+def main(args: list[str] | None = None) -> None:
+    run_node(PDGravityController, args)
+
+
+if __name__ == "__main__":
+    main()

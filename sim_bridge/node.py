@@ -1,0 +1,302 @@
+"""``sim_bridge``: the PyBullet plant as a ROS 2 node.
+
+Publishes ``joint_states`` (position, velocity, and the motor torque applied during the last
+step) and ``/clock``; applies effort commands from ``effort_command`` (JointState, joints by
+name) or ``~/commands`` (Float64MultiArray in joint order). Two modes:
+
+- ``realtime``: physics runs at ``physics_rate`` paced by the wall clock in its own thread,
+  the state is published at ``publish_rate``, the newest valid command is held;
+- ``lockstep``: the state for time t is published, the node waits for the command whose
+  ``header.stamp`` is t (a ``~/commands`` message answers whatever state is pending), then
+  steps to t + 1/publish_rate and publishes again. Nothing depends on the wall clock, so the
+  same inputs give the same run. A state left unanswered for ``republish_period`` is sent
+  again (late subscribers), with the same stamp.
+
+Safe fallback: in realtime mode, when no valid command arrived for ``command_timeout``
+(simulation time), and before the first command, the brakes are engaged (velocity servos
+with zero target, limited to the effort limits): the arm stops and holds. In lockstep mode
+time does not advance without a command, so there is nothing to time out.
+
+Services: ``~/reset`` (initial configuration, at rest; time keeps running forward),
+``~/pause`` and ``~/resume`` (std_srvs/Trigger).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any
+
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+from joint_space_control.model.dynamics import RobotModel, per_joint
+from joint_space_control.model.robots import resolve_robot
+from joint_space_control.nodes import parameters as P
+from joint_space_control.nodes.messages import (
+    CONTROL_QOS,
+    JointOrder,
+    effort_arrays,
+    float_array,
+    make_joint_state,
+    stamp_to_ns,
+)
+from joint_space_control.nodes.node_main import run_node
+from sim_bridge.plant import Plant
+
+MODES = ("realtime", "lockstep")
+
+PARAMETERS = (
+    P.ParamSpec("robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda",
+                read_only=True),
+    P.ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
+    P.ParamSpec("joints", [], "Controlled joints (default: the robot's)", read_only=True,
+                dynamic=True),
+    P.ParamSpec("mode", "realtime", "realtime | lockstep", read_only=True),
+    P.ParamSpec("physics_rate", 1000.0, "Physics step rate [Hz], a multiple of publish_rate",
+                read_only=True),
+    P.ParamSpec("publish_rate", 1000.0, "Joint state rate [Hz] (= command period in lockstep)",
+                read_only=True),
+    P.ParamSpec("initial_positions", 0.0, "Initial joint positions [rad], one value or one per "
+                "joint", read_only=True, dynamic=True),
+    P.ParamSpec("viscous_friction", 0.0, "Plant viscous friction F [N·m·s/rad], one value or "
+                "one per joint, >= 0 (the URDF's joint damping is not applied)", dynamic=True),
+    P.ParamSpec("payload_mass", 0.0, "Point mass [kg] at the centre of mass of the last "
+                "joint's link, >= 0 (plant only)"),
+    P.ParamSpec("command_timeout", 0.1, "Realtime: brake when no valid command for this long "
+                "[s], > 0"),
+    P.ParamSpec("republish_period", 0.5, "Lockstep: send an unanswered state again after this "
+                "wall time [s], > 0", read_only=True),
+    P.ParamSpec("start_paused", False, "Start paused (call ~/resume to run)", read_only=True),
+    P.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
+)
+
+
+class SimBridge(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("sim_bridge", **kwargs)
+        P.declare(self, PARAMETERS)
+        v = P.current_values(self, PARAMETERS)
+        spec = resolve_robot(v["robot"] if not v["urdf_path"] else "", v["urdf_path"])
+        model = RobotModel(spec, P.names(v, "joints") or None)
+        self.joints = model.joint_names
+        self.n = len(self.joints)
+        self.mode = P.choice(v, "mode", MODES)
+        physics_rate = P.positive(v, "physics_rate")
+        publish_rate = P.positive(v, "publish_rate")
+        substeps = round(physics_rate / publish_rate)
+        if substeps < 1 or abs(substeps * publish_rate - physics_rate) > 1e-6 * physics_rate:
+            raise ValueError("physics_rate must be an integer multiple of publish_rate")
+        self.substeps = substeps
+        self.physics_dt_ns = round(1e9 / physics_rate)
+        self.period_ns = substeps * self.physics_dt_ns
+        self.command_timeout = P.positive(v, "command_timeout")
+        republish = P.positive(v, "republish_period")
+        self.plant = Plant(
+            spec, self.joints, physics_rate,
+            friction=P.numbers(v, "viscous_friction"),
+            payload_mass=P.nonnegative_number(v, "payload_mass"),
+            initial_positions=per_joint(P.numbers(v, "initial_positions"), self.n,
+                                        "initial_positions"),
+            locked_positions=model.locked_positions,
+            gui=bool(v["gui"]),
+        )
+        for warning in self.plant.warnings:
+            self.get_logger().warning(warning)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self._lock = threading.Lock()  # plant and time, shared with the realtime thread
+        self._order = JointOrder(self.joints)
+        self._t_ns = 0
+        self._tau: np.ndarray | None = None  # newest valid command (realtime)
+        self._tau_t_ns = 0
+        self._awaiting: int | None = None  # lockstep: stamp of the state waiting for answer
+        self._sent_wall = 0.0
+        self._paused = bool(v["start_paused"])
+        self._braking = True
+        self._running = True
+
+        self._state_msg = make_joint_state(self.joints)
+        self._clock_msg = Clock()
+        self._state_pub = self.create_publisher(JointState, "joint_states", CONTROL_QOS)
+        self._clock_pub = self.create_publisher(Clock, "/clock", CONTROL_QOS)
+        self.create_subscription(JointState, "effort_command", self._on_effort, CONTROL_QOS)
+        self.create_subscription(Float64MultiArray, "~/commands", self._on_array, CONTROL_QOS)
+        self.create_service(Trigger, "~/reset", self._on_reset)
+        self.create_service(Trigger, "~/pause", self._on_pause)
+        self.create_service(Trigger, "~/resume", self._on_resume)
+
+        if self.mode == "lockstep":
+            self.create_timer(republish / 4, lambda: self._republish(republish))
+            if not self._paused:
+                self._publish_state()
+        else:
+            self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
+            self._thread.start()
+        self.get_logger().info(
+            f"sim_bridge: {spec.name} {list(self.joints)}, {self.mode}, physics "
+            f"{physics_rate:g} Hz, publish {publish_rate:g} Hz"
+            + (", paused" if self._paused else "")
+        )
+
+    # -- parameters --------------------------------------------------------------------
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        values = P.current_values(self, PARAMETERS)
+        for p in params:
+            if p.name in values:
+                values[p.name] = p.value
+        try:
+            friction = per_joint(P.numbers(values, "viscous_friction"), self.n,
+                                 "viscous_friction")
+            if np.any(friction < 0):
+                raise ValueError("'viscous_friction' must be >= 0")
+            payload = P.nonnegative_number(values, "payload_mass")
+            timeout = P.positive(values, "command_timeout")
+        except ValueError as err:
+            self.get_logger().warning(f"rejected parameter update: {err}")
+            return SetParametersResult(successful=False, reason=str(err))
+        with self._lock:
+            self.plant.set_friction(friction)
+            if payload != self.plant.payload_mass:
+                self.plant.set_payload(payload)
+            self.command_timeout = timeout
+        return SetParametersResult(successful=True)
+
+    # -- publishing --------------------------------------------------------------------
+    def _publish_state(self) -> None:
+        state = self.plant.state()
+        msg = self._state_msg
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(self._t_ns, 1_000_000_000)
+        msg.position = state.q.tolist()
+        msg.velocity = state.dq.tolist()
+        msg.effort = state.effort.tolist()
+        self._clock_msg.clock = msg.header.stamp
+        self._clock_pub.publish(self._clock_msg)
+        if self.mode == "lockstep":
+            self._awaiting = self._t_ns
+            self._sent_wall = time.monotonic()
+        self._state_pub.publish(msg)
+
+    def _republish(self, after: float) -> None:
+        if self._awaiting is not None and not self._paused:
+            if time.monotonic() - self._sent_wall > after:
+                self._publish_state()
+
+    # -- commands ----------------------------------------------------------------------
+    def _on_effort(self, msg: JointState) -> None:
+        try:
+            tau = effort_arrays(msg, self._order)
+        except ValueError as err:
+            self.get_logger().warning(f"rejected effort command: {err}",
+                                      throttle_duration_sec=1.0)
+            return
+        self._command(tau, stamp_to_ns(msg.header.stamp))
+
+    def _on_array(self, msg: Float64MultiArray) -> None:
+        try:
+            tau = float_array(msg, self.n)
+        except ValueError as err:
+            self.get_logger().warning(f"rejected command array: {err}",
+                                      throttle_duration_sec=1.0)
+            return
+        self._command(tau, None)
+
+    def _command(self, tau: np.ndarray, stamp_ns: int | None) -> None:
+        if self.mode == "realtime":
+            with self._lock:
+                self._tau, self._tau_t_ns = tau, self._t_ns
+            return
+        if self._paused or self._awaiting is None:
+            return
+        if stamp_ns is not None and stamp_ns != self._awaiting:
+            return  # answers an older state
+        self._awaiting = None
+        self.plant.step(tau, self.substeps)
+        self._t_ns += self.period_ns
+        self._publish_state()
+
+    # -- realtime ----------------------------------------------------------------------
+    def _realtime_loop(self) -> None:
+        dt = self.physics_dt_ns * 1e-9
+        deadline = time.monotonic()
+        k = 0
+        while self._running:
+            with self._lock:
+                if not self._paused:
+                    self._physics_step()
+                    k += 1
+                    if k % self.substeps == 0:
+                        self._publish_state()
+            deadline += dt
+            delay = deadline - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            elif delay < -0.1:  # far behind (machine stalled): do not try to catch up
+                deadline = time.monotonic()
+
+    def _physics_step(self) -> None:
+        fresh = (
+            self._tau is not None
+            and (self._t_ns - self._tau_t_ns) * 1e-9 <= self.command_timeout
+        )
+        if fresh:
+            if self._braking:
+                self.get_logger().info("valid commands: torque control")
+                self._braking = False
+            self.plant.step(self._tau, 1)
+        else:
+            if not self._braking:
+                self.get_logger().warning(
+                    f"no valid command for {self.command_timeout} s: brakes engaged"
+                )
+                self._braking = True
+            self.plant.brake(1)
+        self._t_ns += self.physics_dt_ns
+
+    # -- services ----------------------------------------------------------------------
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        with self._lock:
+            self.plant.reset()
+            self._tau = None
+            if self.mode == "lockstep" and not self._paused:
+                self._publish_state()
+        response.success, response.message = True, "reset to the initial configuration"
+        return response
+
+    def _on_pause(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        with self._lock:
+            self._paused = True
+            self._awaiting = None
+        response.success, response.message = True, "paused"
+        return response
+
+    def _on_resume(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        with self._lock:
+            was_paused, self._paused = self._paused, False
+            if self.mode == "realtime":
+                self._tau = None  # commands from before the pause are stale
+            elif was_paused or self._awaiting is None:
+                self._publish_state()
+        response.success, response.message = True, "running"
+        return response
+
+    def close(self) -> None:
+        self._running = False
+        thread = getattr(self, "_thread", None)
+        if thread is not None:
+            thread.join(timeout=1.0)
+        self.plant.close()
+
+
+def main(args: list[str] | None = None) -> None:
+    run_node(SimBridge, args)
+
+
+if __name__ == "__main__":
+    main()

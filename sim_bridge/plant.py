@@ -1,0 +1,232 @@
+r"""The PyBullet plant, without ROS: B(q) q̈ + C(q, q̇) q̇ + F q̇ + g(q) = τ (THEORY.md §1).
+
+Torque control done so that the plant is exactly what its parameters say:
+- the URDF is loaded with ``URDF_USE_INERTIA_FROM_FILE`` (PyBullet would otherwise recompute
+  link inertias from the collision shapes), and every link's inertia is checked against the
+  URDF afterwards: PyBullet silently replaces inertias it finds physically invalid, and
+  :attr:`Plant.warnings` says so;
+- PyBullet's own damping is switched off: the URDF's ``<dynamics damping>`` (the iiwa has
+  0.5 N·m·s/rad on every joint) and Bullet's default link damping (0.04). The only friction
+  is the explicit viscous friction F of :class:`Plant`, applied as −F q̇ at every physics
+  sub-step;
+- the default velocity motors of the controlled joints are disabled (zero force), so the
+  commanded torque is all there is; it is held constant over every physics sub-step until
+  the next command (zero-order hold) and clamped to the URDF effort limits;
+- joints of the URDF that are not controlled (gripper fingers) are locked at the same
+  positions as in the controller model, by stiff position servos;
+- the payload is a point mass at the centre of mass of the last controlled joint's child
+  link, the same place as :class:`~joint_space_control.model.dynamics.ModelPerturbation`.
+
+Integration is Bullet's semi-implicit Euler at ``1 / physics_rate``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pybullet as pb
+
+from joint_space_control.model.dynamics import per_joint
+from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
+
+GRAVITY = (0.0, 0.0, -9.81)
+#: Force [N or N·m] of the servos that lock the joints that are not controlled.
+LOCK_FORCE = 1.0e4
+
+
+@dataclass
+class PlantState:
+    q: np.ndarray
+    dq: np.ndarray
+    effort: np.ndarray  # motor torque applied during the last step [N·m]
+
+
+class Plant:
+    """One robot in its own PyBullet physics client."""
+
+    def __init__(
+        self,
+        spec: RobotSpec,
+        joints: Sequence[str],
+        physics_rate: float = 1000.0,
+        friction: float | Sequence[float] = 0.0,
+        payload_mass: float = 0.0,
+        initial_positions: Sequence[float] | None = None,
+        locked_positions: dict[str, float] | None = None,
+        gui: bool = False,
+    ) -> None:
+        if not (np.isfinite(physics_rate) and physics_rate > 0):
+            raise ValueError("physics_rate must be a positive number")
+        self.spec = spec
+        self.joint_names = tuple(joints)
+        self.n = len(self.joint_names)
+        self.dt = 1.0 / physics_rate
+        self.client = pb.connect(pb.GUI if gui else pb.DIRECT)
+        try:
+            self._load(self.joint_names, locked_positions or {})
+        except Exception:
+            pb.disconnect(self.client)
+            raise
+        self.friction = np.zeros(self.n)
+        self.set_friction(friction)
+        info = pb.getDynamicsInfo(self.body, self._idx[-1], self.client)
+        self._base_mass, self._last_inertia = info[0], list(info[2])
+        self.payload_mass = 0.0
+        self.set_payload(payload_mass)
+        self.initial_positions = per_joint(
+            0.0 if initial_positions is None else initial_positions, self.n, "initial_positions"
+        )
+        self.warnings = self._inertia_warnings()
+        self._effort = np.zeros(self.n)
+        self.reset()
+
+    # -- set-up ------------------------------------------------------------------------
+    def _load(self, joints: tuple[str, ...], locked: dict[str, float]) -> None:
+        c = self.client
+        pb.setGravity(*GRAVITY, physicsClientId=c)
+        pb.setTimeStep(self.dt, physicsClientId=c)
+        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=c)
+        self.body = pb.loadURDF(
+            str(self.spec.urdf_path),
+            useFixedBase=True,
+            flags=pb.URDF_USE_INERTIA_FROM_FILE,
+            physicsClientId=c,
+        )
+        by_name, self.link_names = {}, {}
+        for j in range(pb.getNumJoints(self.body, c)):
+            info = pb.getJointInfo(self.body, j, c)
+            by_name[info[1].decode()] = (j, info)
+            self.link_names[j] = info[12].decode()
+        missing = [name for name in self.joint_names if name not in by_name]
+        if missing:
+            raise ValueError(f"unknown joints {missing} in {Path(self.spec.urdf_path).name}")
+        self._idx = [by_name[name][0] for name in self.joint_names]
+        self.effort_limits = np.array(
+            [by_name[name][1][10] if by_name[name][1][10] > 0 else np.inf for name in joints]
+        )
+        for link in range(-1, pb.getNumJoints(self.body, c)):
+            pb.changeDynamics(
+                self.body, link, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
+                physicsClientId=c,
+            )
+        pb.setJointMotorControlArray(
+            self.body, self._idx, pb.VELOCITY_CONTROL, forces=[0.0] * self.n, physicsClientId=c
+        )
+        self._locked = []
+        for name, (j, info) in by_name.items():
+            if name in self.joint_names or info[2] == pb.JOINT_FIXED:
+                continue
+            target = float(locked.get(name, 0.0))
+            pb.resetJointState(self.body, j, target, 0.0, physicsClientId=c)
+            pb.setJointMotorControl2(
+                self.body, j, pb.POSITION_CONTROL, targetPosition=target, force=LOCK_FORCE,
+                physicsClientId=c,
+            )
+            self._locked.append((j, target))
+
+    def _inertia_warnings(self) -> list[str]:
+        """Differences between the links PyBullet simulates and the URDF's inertials."""
+        facts = urdf_facts(Path(self.spec.urdf_path))
+        warnings = []
+        for j, link in self.link_names.items():
+            urdf = facts.inertials.get(link)
+            if urdf is None:
+                continue
+            info = pb.getDynamicsInfo(self.body, j, self.client)
+            mass = info[0] - (self.payload_mass if j == self._idx[-1] else 0.0)
+            urdf_moments = np.sort(np.linalg.eigvalsh(urdf.inertia))
+            pb_moments = np.sort(np.asarray(info[2]))
+            scale = max(1e-9, float(np.max(np.abs(urdf_moments))))
+            if not inertia_is_physical(urdf.inertia):
+                warnings.append(
+                    f"link '{link}': URDF inertia {urdf_moments.tolist()} is not physical "
+                    f"(triangle inequality or sign); PyBullet simulates {pb_moments.tolist()} "
+                    "while the controller model keeps the URDF values"
+                )
+            elif np.max(np.abs(urdf_moments - pb_moments)) > 1e-6 * scale or (
+                abs(mass - urdf.mass) > 1e-9 * max(1.0, urdf.mass)
+            ):
+                warnings.append(
+                    f"link '{link}': PyBullet uses mass {mass:g} kg, principal inertia "
+                    f"{pb_moments.tolist()} but the URDF says {urdf.mass:g} kg, "
+                    f"{urdf_moments.tolist()}"
+                )
+        return warnings
+
+    # -- perturbations -----------------------------------------------------------------
+    def set_friction(self, friction: float | Sequence[float]) -> None:
+        value = per_joint(friction, self.n, "viscous_friction")
+        if np.any(value < 0):
+            raise ValueError("viscous_friction must be >= 0")
+        self.friction = value
+
+    def set_payload(self, mass: float) -> None:
+        if not np.isfinite(mass) or mass < 0:
+            raise ValueError("payload_mass must be a finite value >= 0")
+        # PyBullet recomputes the inertia from the collision shapes when only the mass is
+        # changed; a point mass at the centre of mass leaves the inertia as it is.
+        pb.changeDynamics(
+            self.body,
+            self._idx[-1],
+            mass=self._base_mass + mass,
+            localInertiaDiagonal=self._last_inertia,
+            physicsClientId=self.client,
+        )
+        self.payload_mass = float(mass)
+
+    # -- simulation --------------------------------------------------------------------
+    def reset(self, q: Sequence[float] | None = None) -> None:
+        """Put the controlled joints at q (default: the initial positions), at rest."""
+        q = self.initial_positions if q is None else per_joint(q, self.n, "q")
+        for j, value in zip(self._idx, q, strict=True):
+            pb.resetJointState(self.body, j, float(value), 0.0, physicsClientId=self.client)
+        for j, target in self._locked:
+            pb.resetJointState(self.body, j, target, 0.0, physicsClientId=self.client)
+        self._effort = np.zeros(self.n)
+
+    def state(self) -> PlantState:
+        states = pb.getJointStates(self.body, self._idx, physicsClientId=self.client)
+        q = np.array([s[0] for s in states])
+        dq = np.array([s[1] for s in states])
+        return PlantState(q, dq, self._effort.copy())
+
+    def step(self, tau: np.ndarray, substeps: int = 1) -> None:
+        """Hold the motor torque tau (clamped to the effort limits) over ``substeps`` physics
+        steps, adding the viscous friction −F q̇ evaluated at each sub-step."""
+        tau = np.clip(tau, -self.effort_limits, self.effort_limits)
+        c, body, idx = self.client, self.body, self._idx
+        for _ in range(substeps):
+            if np.any(self.friction):
+                dq = np.array([s[1] for s in pb.getJointStates(body, idx, physicsClientId=c)])
+                applied = tau - self.friction * dq
+            else:
+                applied = tau
+            pb.setJointMotorControlArray(
+                body, idx, pb.TORQUE_CONTROL, forces=applied.tolist(), physicsClientId=c
+            )
+            pb.stepSimulation(physicsClientId=c)
+        self._effort = tau
+
+    def brake(self, substeps: int = 1) -> None:
+        """Safe fallback: engage brakes, i.e. velocity servos with zero target speed and at
+        most the effort limit, so the arm stops and holds wherever it is."""
+        c, body, idx = self.client, self.body, self._idx
+        forces = np.where(np.isfinite(self.effort_limits), self.effort_limits, LOCK_FORCE)
+        pb.setJointMotorControlArray(
+            body, idx, pb.VELOCITY_CONTROL, targetVelocities=[0.0] * self.n,
+            forces=forces.tolist(), physicsClientId=c,
+        )
+        for _ in range(substeps):
+            pb.stepSimulation(physicsClientId=c)
+        states = pb.getJointStates(body, idx, physicsClientId=c)
+        self._effort = np.array([s[3] for s in states])
+        pb.setJointMotorControlArray(
+            body, idx, pb.VELOCITY_CONTROL, forces=[0.0] * self.n, physicsClientId=c
+        )
+
+    def close(self) -> None:
+        if pb.isConnected(self.client):
+            pb.disconnect(self.client)
