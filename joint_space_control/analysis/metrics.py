@@ -1,0 +1,591 @@
+r"""Response metrics of sampled joint signals, and the second-order theory they are checked
+against (shared THEORY.md §3–4). Arrays in, numbers out: numpy only, no ROS.
+
+Units: time in seconds, joint positions in the joint's unit (rad, or m for a prismatic
+joint), torques in N·m (N for a prismatic joint), percentages in %.
+
+- :func:`step_metrics`, :func:`step_metrics_per_joint`: rise time, settling times,
+  overshoot and steady-state error of a step response (:class:`StepMetrics`);
+- :func:`tracking_error`: RMS and peak of e = q_d − q;
+- :func:`torque_demand`: peak |τ|, peak |τ̇|, fraction of time at the torque limit;
+- :func:`period_statistics`: timing of a periodic loop from its time stamps;
+- :func:`second_order_step`, :func:`second_order_prediction`, :func:`gains_to_second_order`:
+  the analytic answer for the nominal inverse-dynamics loop ë + K_D ė + K_P e = 0, where each
+  joint follows G(s) = ω_n² / (s² + 2ζω_n s + ω_n²), ω_n = √K_P, ζ = K_D / (2√K_P).
+
+Sampled step metrics are measured on the samples themselves with linear interpolation between
+two samples to place a crossing instant; they therefore cannot see an excursion that lies
+entirely between two samples, and a sampled peak is lower than the true one by up to
+½·|ÿ(t_peak)|·(Δt/2)².
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+RISE_LOW = 0.1
+"""Lower level of the rise time, as a fraction of the step."""
+RISE_HIGH = 0.9
+"""Upper level of the rise time, as a fraction of the step."""
+DEFAULT_FINAL_WINDOW = 0.1
+"""Default length [s] of the window at the end of a record averaged into the final value."""
+
+_MAX_BISECTIONS = 200
+_MAX_DOUBLINGS = 1100
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _time(t: ArrayLike, name: str = "t") -> np.ndarray:
+    """A 1-D, non-empty, finite, non-decreasing time vector (equal stamps are allowed)."""
+    arr = np.asarray(t, dtype=float)
+    if arr.ndim != 1:
+        raise ValueError(f"'{name}' must be 1-D, got shape {arr.shape}")
+    if arr.size == 0:
+        raise ValueError(f"'{name}' is empty")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"'{name}' contains NaN or infinite values")
+    if np.any(np.diff(arr) < 0):
+        raise ValueError(f"'{name}' must be non-decreasing (monotonic time)")
+    return arr
+
+
+def _samples(values: ArrayLike, n: int, name: str) -> np.ndarray:
+    """Samples (n, n_joints), finite, returned as a C-contiguous (n_joints, n) array.
+
+    A 1-D input is one joint. Joint-major layout makes the per-joint reductions run over
+    contiguous memory (several times faster than reducing axis 0 of an (n, 7) array).
+    """
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise ValueError(f"'{name}' must be 1-D or 2-D (samples, joints), got shape {arr.shape}")
+    if arr.shape[0] != n:
+        raise ValueError(f"'{name}' has {arr.shape[0]} samples but the time vector has {n}")
+    if arr.shape[1] == 0:
+        raise ValueError(f"'{name}' has no joints")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"'{name}' contains NaN or infinite values")
+    return np.ascontiguousarray(arr.T)
+
+
+def _per_joint(value: ArrayLike, n: int, name: str) -> np.ndarray:
+    """A scalar broadcast to n joints, or n finite values."""
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.size == 1:
+        arr = np.full(n, float(arr[0]))
+    if arr.size != n:
+        raise ValueError(f"'{name}' needs 1 or {n} values, got {arr.size}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"'{name}' must be finite, got {arr.tolist()}")
+    return arr
+
+
+def _step_index(t: np.ndarray, t_step: float | None) -> tuple[int, float]:
+    """Index of the last sample at or before the step instant, and that instant."""
+    if t_step is None:
+        t_step = float(t[0])
+    t_step = float(t_step)
+    if not math.isfinite(t_step) or t_step < t[0] or t_step > t[-1]:
+        raise ValueError(f"'t_step' = {t_step} is outside the record [{t[0]}, {t[-1]}]")
+    return int(np.searchsorted(t, t_step, side="right")) - 1, t_step
+
+
+# --------------------------------------------------------------------------- step response
+
+
+@dataclass(frozen=True)
+class StepMetrics:
+    """Step-response metrics of one joint (positions in the joint's unit, times in s).
+
+    - ``initial``: y0, the last sample at or before the step instant;
+    - ``final_target``: the reference end value if one was given, else ``final_value``;
+    - ``final_value``: mean of the samples in the last ``final_window`` seconds;
+    - ``steady_state_error``: final_target − final_value (signed);
+    - ``rise_time``: time from 10 % to 90 % of the way from y0 to ``final_value`` [s]
+      (NaN if 90 % is never reached, or if final_value = y0);
+    - ``settling_time_2``, ``settling_time_5``: time after the step instant from which the
+      response stays within ±2 % (±5 %) of |final_target − y0| around final_target [s]:
+      the interpolated last exit from the band, clamped at 0 (0 only if the response is
+      inside from the first sample after the step on); NaN if it is still outside the band
+      at the last sample, or if final_target = y0;
+    - ``overshoot_percent``: largest excursion beyond final_target in the direction of the
+      step, in % of |final_target − y0| (0 if none; NaN if final_target = y0).
+    """
+
+    initial: float
+    final_target: float
+    final_value: float
+    steady_state_error: float
+    rise_time: float
+    settling_time_2: float
+    settling_time_5: float
+    overshoot_percent: float
+
+    @property
+    def abs_steady_state_error(self) -> float:
+        """|final_target − final_value|, in the joint's unit."""
+        return abs(self.steady_state_error)
+
+
+def _first_crossing(t: np.ndarray, s: np.ndarray, level: float) -> float:
+    """First instant s reaches ``level`` (s rising), linearly interpolated; NaN if never."""
+    reached = s >= level
+    k = int(np.argmax(reached))
+    if not reached[k]:
+        return math.nan
+    if k == 0:
+        return float(t[0])
+    frac = (level - s[k - 1]) / (s[k] - s[k - 1])
+    return float(t[k - 1] + frac * (t[k] - t[k - 1]))
+
+
+def _rise_time(t: np.ndarray, y: np.ndarray, y_final: float, t_step: float) -> float:
+    span = y_final - y[0]
+    if span == 0.0:
+        return math.nan
+    progress = (y - y[0]) / span  # 0 at y0, 1 at y_final, whatever the step's direction
+    t_high = _first_crossing(t, progress, RISE_HIGH)
+    if math.isnan(t_high):
+        return math.nan
+    t_low = _first_crossing(t, progress, RISE_LOW)  # reached no later than t_high
+    return max(t_high, t_step) - max(t_low, t_step)
+
+
+def _settling_time(
+    t: np.ndarray, y: np.ndarray, target: float, band: float, t_step: float
+) -> float:
+    amplitude = abs(target - y[0])
+    if amplitude == 0.0:
+        return math.nan
+    err = (y - target) / amplitude
+    outside = np.abs(err) > band  # y0 itself is outside (|err| = 1): some k exists
+    k = outside.size - 1 - int(np.argmax(outside[::-1]))  # last sample outside the band
+    if k == outside.size - 1:
+        return math.nan
+    edge = band if err[k] > 0 else -band
+    frac = (edge - err[k]) / (err[k + 1] - err[k])
+    return max(float(t[k] + frac * (t[k + 1] - t[k])) - t_step, 0.0)
+
+
+def _overshoot_percent(y: np.ndarray, target: float) -> float:
+    span = target - y[0]
+    if span == 0.0:
+        return math.nan
+    beyond = float(np.max((y - target) / span))  # > 0 past the target, in the step direction
+    return 100.0 * beyond if beyond > 0.0 else 0.0
+
+
+def _step_metrics(
+    t: np.ndarray,
+    y: np.ndarray,
+    target: float | None,
+    i0: int,
+    t_step: float,
+    final_window: float,
+) -> StepMetrics:
+    t, y = t[i0:], y[i0:]
+    # averaged relative to y0: a signal that never moved gives exactly y0, i.e. no step
+    final_value = float(y[0] + np.mean(y[t >= t[-1] - final_window] - y[0]))
+    final_target = final_value if target is None else float(target)
+    return StepMetrics(
+        initial=float(y[0]),
+        final_target=final_target,
+        final_value=final_value,
+        steady_state_error=final_target - final_value,
+        rise_time=_rise_time(t, y, final_value, t_step),
+        settling_time_2=_settling_time(t, y, final_target, 0.02, t_step),
+        settling_time_5=_settling_time(t, y, final_target, 0.05, t_step),
+        overshoot_percent=_overshoot_percent(y, final_target),
+    )
+
+
+def _check_window(final_window: float) -> float:
+    final_window = float(final_window)
+    if not final_window >= 0.0 or math.isinf(final_window):
+        raise ValueError(f"'final_window' must be finite and >= 0 s, got {final_window}")
+    return final_window
+
+
+def step_metrics(
+    t: ArrayLike,
+    y: ArrayLike,
+    target: float | None = None,
+    t_step: float | None = None,
+    final_window: float = DEFAULT_FINAL_WINDOW,
+) -> StepMetrics:
+    """Rise time, settling times, overshoot and steady-state error of one step response.
+
+    Args:
+        t: sample times [s], shape (N,), non-decreasing.
+        y: response samples, shape (N,), in the joint's unit.
+        target: the reference's end value; ``None`` uses the measured final value.
+        t_step: step instant [s] (default ``t[0]``). y0 is the last sample at or before it,
+            and only that sample and later ones are analysed; metrics are relative to y0, so
+            the response need not start from 0 and may step in either direction.
+        final_window: the final value is the mean of the samples in the last
+            ``final_window`` seconds (at least the last sample).
+
+    Crossing instants are linearly interpolated between samples. The rise time is
+    t(90 %) − t(10 %) of the way from y0 to the final value, each instant the first one at
+    or after ``t_step``. A settling time is the last instant the response leaves the band
+    final_target ± p·|final_target − y0| (p = 0.02 or 0.05), minus ``t_step``; see
+    :class:`StepMetrics` for the NaN cases.
+
+    Raises:
+        ValueError: on empty, mismatched, non-finite or non-monotonic input.
+    """
+    t = _time(t)
+    if np.ndim(y) != 1:
+        raise ValueError(f"'y' must be 1-D (use step_metrics_per_joint), got {np.shape(y)}")
+    y = _samples(y, t.size, "y")[0]
+    if target is not None:
+        target = float(_per_joint(target, 1, "target")[0])
+    i0, t_step = _step_index(t, t_step)
+    return _step_metrics(t, y, target, i0, t_step, _check_window(final_window))
+
+
+def step_metrics_per_joint(
+    t: ArrayLike,
+    Y: ArrayLike,
+    targets: ArrayLike | None = None,
+    t_step: float | None = None,
+    final_window: float = DEFAULT_FINAL_WINDOW,
+) -> list[StepMetrics]:
+    """:func:`step_metrics` of every column of Y, shape (N, n_joints), sharing ``t_step``.
+
+    ``targets`` is ``None`` (final values), one value for every joint, or n_joints values.
+    """
+    t = _time(t)
+    Y = _samples(Y, t.size, "Y")
+    n = Y.shape[0]
+    goals = [None] * n if targets is None else _per_joint(targets, n, "targets").tolist()
+    i0, t_step = _step_index(t, t_step)
+    final_window = _check_window(final_window)
+    return [_step_metrics(t, Y[j], goals[j], i0, t_step, final_window) for j in range(n)]
+
+
+# --------------------------------------------------------------------------- tracking, torque
+
+
+def tracking_error(
+    t: ArrayLike,
+    q: ArrayLike,
+    q_des: ArrayLike,
+    t_start: float | None = None,
+    t_end: float | None = None,
+) -> dict[str, np.ndarray]:
+    r"""Tracking error e = q_d − q per joint over the samples with t_start ≤ t ≤ t_end.
+
+    Returns ``{"rms": ..., "max_abs": ...}``, arrays of shape (n_joints,) in the joint's unit
+    (a 1-D q is one joint):
+
+    - ``rms`` = √( ∫ e² dt / (t_last − t_first) ), the integral by the trapezoidal rule on the
+      actual sample times (the plain mean of e² if the window spans no time). Over whole
+      periods of a sampled sinusoid A sin ωt this is A/√2 exactly.
+    - ``max_abs`` = max |e| over the window's samples.
+    """
+    t = _time(t)
+    q = _samples(q, t.size, "q")
+    q_des = _samples(q_des, t.size, "q_des")
+    if q.shape != q_des.shape:
+        raise ValueError(f"'q' has shape {q.shape} but 'q_des' has {q_des.shape}")
+    lo = -math.inf if t_start is None else float(t_start)
+    hi = math.inf if t_end is None else float(t_end)
+    if math.isnan(lo) or math.isnan(hi) or lo > hi:
+        raise ValueError(f"bad time window [{t_start}, {t_end}]")
+    first = int(np.searchsorted(t, lo, side="left"))
+    stop = int(np.searchsorted(t, hi, side="right"))
+    if stop <= first:
+        raise ValueError(f"no sample in the time window [{t_start}, {t_end}]")
+    tw = t[first:stop]
+    e2 = (q_des[:, first:stop] - q[:, first:stop]) ** 2
+    span = tw[-1] - tw[0]
+    if span > 0.0:
+        dt = np.diff(tw)
+        weights = 0.5 * (np.append(dt, 0.0) + np.insert(dt, 0, 0.0))  # trapezoidal rule
+        mean_square = e2 @ weights / span
+    else:
+        mean_square = np.mean(e2, axis=1)
+    return {"rms": np.sqrt(mean_square), "max_abs": np.sqrt(np.max(e2, axis=1))}
+
+
+def torque_demand(
+    t: ArrayLike,
+    tau: ArrayLike,
+    limits: ArrayLike | None = None,
+    saturation_tol: float = 1e-9,
+) -> dict[str, np.ndarray]:
+    r"""Peak torque, peak torque rate and time spent saturated, per joint.
+
+    Args:
+        t: sample times [s], shape (N,), non-decreasing.
+        tau: torques [N·m], shape (N,) or (N, n_joints).
+        limits: effort limits [N·m] (> 0), one for all joints or one per joint.
+        saturation_tol: a sample is saturated when |τ| ≥ limit − saturation_tol [N·m].
+
+    Returns arrays of shape (n_joints,):
+
+    - ``peak_abs``: max |τ| [N·m];
+    - ``peak_rate``: max |τ̇| [N·m/s], from finite differences (τ_{k+1} − τ_k)/(t_{k+1} − t_k)
+      on the actual sample times. Repeated time stamps are skipped (no zero division): of
+      samples sharing a stamp only the last one is used. NaN if the record spans no time.
+    - ``saturated_fraction``: time-weighted fraction of the record at the limit, each sample
+      holding until the next one (weight t_{k+1} − t_k; the last sample has none); the plain
+      sample fraction if the record spans no time; NaN when no ``limits`` are given.
+    """
+    t = _time(t)
+    tau = _samples(tau, t.size, "tau")
+    n = tau.shape[0]
+    if not float(saturation_tol) >= 0.0:
+        raise ValueError(f"'saturation_tol' must be >= 0 N·m, got {saturation_tol}")
+    dt = np.diff(t)
+    if np.all(dt > 0.0):
+        tk, tauk = t, tau
+    else:
+        last_of_stamp = np.append(dt > 0.0, True)
+        tk, tauk = t[last_of_stamp], tau[:, last_of_stamp]
+    if tk.size >= 2:
+        peak_rate = np.max(np.abs(np.diff(tauk, axis=1) / np.diff(tk)), axis=1)
+    else:
+        peak_rate = np.full(n, math.nan)
+    if limits is None:
+        fraction = np.full(n, math.nan)
+    else:
+        lim = _per_joint(limits, n, "limits")
+        if np.any(lim <= 0.0):
+            raise ValueError(f"'limits' must be > 0, got {lim.tolist()}")
+        saturated = (np.abs(tau) >= (lim - float(saturation_tol))[:, None]).astype(float)
+        total = t[-1] - t[0]
+        if total > 0.0:
+            fraction = saturated[:, :-1] @ dt / total
+        else:
+            fraction = np.mean(saturated, axis=1)
+    return {
+        "peak_abs": np.max(np.abs(tau), axis=1),
+        "peak_rate": peak_rate,
+        "saturated_fraction": fraction,
+    }
+
+
+def period_statistics(stamps: ArrayLike) -> dict[str, float]:
+    r"""Timing of a periodic loop from its time stamps (periods Tₖ = stamp_{k+1} − stamp_k).
+
+    Returns, in the unit of the stamps: ``mean``, ``std`` (population, ddof = 0), ``min``,
+    ``p50`` (median, taken as the nominal period), ``p99`` (linear interpolation), ``max``,
+    ``max_jitter`` = maxₖ |Tₖ − median|, and ``count``, the number of stamps (one more than
+    the number of periods).
+
+    Integer stamps (e.g. nanoseconds) are differenced as integers before conversion, so stamps
+    of epoch size lose no resolution; float epoch seconds carry only ~0.2 µs of resolution.
+    """
+    arr = np.asarray(stamps)
+    if arr.ndim != 1:
+        raise ValueError(f"'stamps' must be 1-D, got shape {arr.shape}")
+    if arr.size < 2:
+        raise ValueError(f"'stamps' needs at least 2 stamps, got {arr.size}")
+    if np.issubdtype(arr.dtype, np.integer):
+        periods = np.diff(arr.astype(np.int64)).astype(float)
+    else:
+        periods = np.diff(_time(arr, "stamps"))
+    if np.any(periods < 0):
+        raise ValueError("'stamps' must be non-decreasing (monotonic time)")
+    median = float(np.median(periods))
+    return {
+        "mean": float(np.mean(periods)),
+        "std": float(np.std(periods)),
+        "min": float(np.min(periods)),
+        "p50": median,
+        "p99": float(np.percentile(periods, 99.0)),
+        "max": float(np.max(periods)),
+        "max_jitter": float(np.max(np.abs(periods - median))),
+        "count": int(arr.size),
+    }
+
+
+# --------------------------------------------------------------------------- second order
+
+
+def gains_to_second_order(kp: ArrayLike, kd: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(ω_n [rad/s], ζ) of ë + K_D ė + K_P e = 0: ω_n = √K_P, ζ = K_D / (2√K_P).
+
+    K_P [1/s²] > 0 and K_D [1/s] ≥ 0 are the (diagonal) gains of the inverse-dynamics outer
+    loop, THEORY.md §3 eq. 15; arrays broadcast together.
+    """
+    kp = np.asarray(kp, dtype=float)
+    kd = np.asarray(kd, dtype=float)
+    if not (np.all(np.isfinite(kp)) and np.all(np.isfinite(kd))):
+        raise ValueError("'kp' and 'kd' must be finite")
+    if np.any(kp <= 0.0) or np.any(kd < 0.0):
+        raise ValueError(f"need kp > 0 and kd >= 0, got kp={kp.tolist()}, kd={kd.tolist()}")
+    omega_n = np.sqrt(kp)
+    return omega_n, kd / (2.0 * omega_n)
+
+
+def second_order_to_gains(omega_n: ArrayLike, zeta: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(K_P, K_D) = (ω_n², 2ζω_n): the inverse of :func:`gains_to_second_order`."""
+    omega_n, zeta = _second_order_parameters(omega_n, zeta)
+    return omega_n**2, 2.0 * zeta * omega_n
+
+
+def _second_order_parameters(omega_n: ArrayLike, zeta: ArrayLike) -> tuple[np.ndarray, ...]:
+    omega_n = np.asarray(omega_n, dtype=float)
+    zeta = np.asarray(zeta, dtype=float)
+    if not (np.all(np.isfinite(omega_n)) and np.all(np.isfinite(zeta))):
+        raise ValueError("'omega_n' and 'zeta' must be finite")
+    if np.any(omega_n <= 0.0) or np.any(zeta < 0.0):
+        raise ValueError(
+            f"need omega_n > 0 and zeta >= 0, got omega_n={omega_n.tolist()}, zeta={zeta.tolist()}"
+        )
+    return omega_n, zeta
+
+
+def _unit_step(x: ArrayLike, zeta: ArrayLike) -> np.ndarray:
+    r"""Unit step response s(x) of 1/(s² + 2ζs + 1) at normalised times x = ω_n t ≥ 0.
+
+    ζ ≤ 1:  s = 1 − e^{−ζx} (cos ω_d x + ζ x sinc(ω_d x)),  ω_d = √(1 − ζ²), sinc(u) = sin u/u
+    ζ > 1:  s = 1 − e^{−ζx} (cosh βx + ζ sinh(βx)/β),       β = √(ζ² − 1)
+    Both forms are written to stay accurate as ζ → 1 (ζ = 1 gives 1 − e^{−x}(1 + x)) and for
+    large x (e^{−ζx} cosh βx as a sum of decaying exponentials).
+    """
+    x, zeta = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(zeta, dtype=float))
+    out = np.empty(x.shape)
+    under = zeta <= 1.0
+    if np.any(under):
+        z, xu = zeta[under], x[under]
+        wd = np.sqrt(1.0 - z * z)
+        out[under] = 1.0 - np.exp(-z * xu) * (np.cos(wd * xu) + z * xu * np.sinc(wd * xu / np.pi))
+    over = ~under
+    if np.any(over):
+        z, xo = zeta[over], x[over]
+        beta = np.sqrt(z * z - 1.0)
+        slow = np.exp(-xo / (z + beta))  # e^{(β − ζ)x}, since (ζ − β)(ζ + β) = 1
+        fast = np.exp(-(z + beta) * xo)
+        sinh_over_beta = -slow * np.expm1(-2.0 * beta * xo) / (2.0 * beta)  # e^{−ζx} sinh(βx)/β
+        out[over] = 1.0 - (0.5 * (slow + fast) + z * sinh_over_beta)
+    return out
+
+
+def second_order_step(
+    t: ArrayLike, omega_n: float, zeta: float, y0: float = 0.0, y1: float = 1.0
+) -> np.ndarray:
+    r"""Analytic step response of ω_n² / (s² + 2ζω_n s + ω_n²) from y0 to y1, step at t = 0.
+
+    y(t) = y0 for t < 0 and y(t) = y0 + (y1 − y0)·s(ω_n t) for t ≥ 0, starting at rest, with
+
+    - ζ < 1: s = 1 − e^{−ζω_n t}(cos ω_d t + ζ/√(1−ζ²) sin ω_d t),  ω_d = ω_n√(1−ζ²);
+    - ζ = 1: s = 1 − e^{−ω_n t}(1 + ω_n t);
+    - ζ > 1: s = 1 − e^{−ζω_n t}(cosh ω_β t + ζ/√(ζ²−1) sinh ω_β t),  ω_β = ω_n√(ζ²−1).
+
+    ``omega_n`` [rad/s] > 0 and ``zeta`` ≥ 0 are scalars; t [s] has any shape, and so does
+    the result (in the unit of y0, y1).
+    """
+    omega_n, zeta = _second_order_parameters(float(omega_n), float(zeta))
+    t = np.asarray(t, dtype=float)
+    x = np.maximum(omega_n * t, 0.0)
+    return np.where(t < 0.0, y0, y0 + (y1 - y0) * _unit_step(x, zeta))
+
+
+def _bisect(inside, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Boundary between ``inside(lo)`` True and ``inside(hi)`` False, to machine precision."""
+    lo, hi = lo.astype(float), hi.astype(float)
+    for _ in range(_MAX_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if np.all((mid <= lo) | (mid >= hi)):
+            break
+        below = inside(mid)
+        lo = np.where(below, mid, lo)
+        hi = np.where(below, hi, mid)
+    return 0.5 * (lo + hi)
+
+
+def _reach(zeta: np.ndarray, level: float) -> np.ndarray:
+    """A normalised time at which the overdamped (ζ ≥ 1) response is at or past ``level``."""
+    hi = np.ones(zeta.shape)
+    for _ in range(_MAX_DOUBLINGS):
+        short = _unit_step(hi, zeta) < level
+        if not short.any():
+            break
+        hi[short] *= 2.0
+    return hi
+
+
+def _first_time(zeta: np.ndarray, level: float) -> np.ndarray:
+    """Normalised first instant s(x) = level, 0 < level < 1."""
+    hi = np.empty(zeta.shape)
+    under = zeta < 1.0
+    # before its first peak x_p = π/ω_d (where s = 1 + M_p) the response rises monotonically
+    hi[under] = np.pi / np.sqrt(1.0 - zeta[under] ** 2)
+    hi[~under] = _reach(zeta[~under], level)  # monotonic for ζ ≥ 1
+    return _bisect(lambda x: _unit_step(x, zeta) < level, np.zeros(zeta.shape), hi)
+
+
+def _settling(zeta: np.ndarray, band: float) -> np.ndarray:
+    """Normalised exact settling time: the last instant |s(x) − 1| = band. NaN for ζ = 0.
+
+    ζ < 1: s − 1 has its extrema at x_k = kπ/ω_d with |s(x_k) − 1| = M_p^k, decreasing in k,
+    and |s − 1| has a single zero between two extrema; so the last exit lies in
+    (x_k, x_{k+1}] with k the largest index such that M_p^k > band. ζ ≥ 1: s rises
+    monotonically to 1 and the answer is the single crossing of 1 − band.
+    """
+    lo = np.zeros(zeta.shape)
+    hi = np.empty(zeta.shape)
+    under = (zeta > 0.0) & (zeta < 1.0)
+    z = zeta[under]
+    wd = np.sqrt(1.0 - z * z)
+    # M_p^k > band  ⇔  k < m = ω_d ln(1/band) / (ζπ); k = 0 (x = 0, |s − 1| = 1) always counts
+    k = np.maximum(np.ceil(wd * math.log(1.0 / band) / (z * np.pi)) - 1.0, 0.0)
+    lo[under] = k * np.pi / wd
+    hi[under] = (k + 1.0) * np.pi / wd
+    mono = zeta >= 1.0
+    hi[mono] = _reach(zeta[mono], 1.0 - band)
+    out = np.full(zeta.shape, math.nan)
+    ok = under | mono
+    zok = zeta[ok]
+    out[ok] = _bisect(lambda x: np.abs(_unit_step(x, zok) - 1.0) > band, lo[ok], hi[ok])
+    return out
+
+
+def second_order_prediction(omega_n: ArrayLike, zeta: ArrayLike) -> dict[str, np.ndarray]:
+    r"""Step-response figures of ω_n² / (s² + 2ζω_n s + ω_n²), per joint.
+
+    ``omega_n`` [rad/s] > 0 and ``zeta`` ≥ 0 broadcast together (a scalar is one joint);
+    every entry is an array of that shape (at least 1-D), times in s:
+
+    - ``rise_time``: 10 %–90 % rise time, exact (bisection on the analytic response, which
+      rises monotonically up to its first peak), for any ζ;
+    - ``peak_time``: π / (ω_n√(1−ζ²)) for ζ < 1, inf otherwise;
+    - ``overshoot_percent``: 100·exp(−πζ/√(1−ζ²)) for ζ < 1, else 0;
+    - ``settling_time_2``, ``settling_time_5``: exact last instant the response leaves the
+      ±2 % (±5 %) band around its final value (bisection on the analytic response between
+      the bracketing extrema); NaN for ζ = 0, which never settles;
+    - ``settling_time_2_approx`` = 4/(ζω_n), ``settling_time_5_approx`` = 3/(ζω_n): the
+      textbook envelope estimates (inf for ζ = 0), for comparison only.
+    """
+    omega_n, zeta = _second_order_parameters(omega_n, zeta)
+    omega_n, zeta = (np.array(a, dtype=float) for a in np.broadcast_arrays(omega_n, zeta))
+    omega_n, zeta = np.atleast_1d(omega_n), np.atleast_1d(zeta)
+    under = zeta < 1.0
+    wd = np.sqrt(np.where(under, 1.0 - zeta**2, 1.0))
+    overshoot = np.where(under, 100.0 * np.exp(-np.pi * zeta / wd), 0.0)
+    peak_time = np.where(under, np.pi / (omega_n * wd), math.inf)
+    rise = (_first_time(zeta, RISE_HIGH) - _first_time(zeta, RISE_LOW)) / omega_n
+    with np.errstate(divide="ignore"):
+        decay = 1.0 / (zeta * omega_n)
+    return {
+        "omega_n": omega_n,
+        "zeta": zeta,
+        "rise_time": rise,
+        "peak_time": peak_time,
+        "overshoot_percent": overshoot,
+        "settling_time_2": _settling(zeta, 0.02) / omega_n,
+        "settling_time_5": _settling(zeta, 0.05) / omega_n,
+        "settling_time_2_approx": 4.0 * decay,
+        "settling_time_5_approx": 3.0 * decay,
+    }
