@@ -38,7 +38,7 @@ from std_srvs.srv import Trigger
 
 from joint_space_control.model.dynamics import RobotModel, per_joint
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.nodes import parameters as P
+from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.messages import (
     CONTROL_QOS,
     JointOrder,
@@ -53,57 +53,88 @@ from sim_bridge.plant import Plant
 MODES = ("realtime", "lockstep")
 
 PARAMETERS = (
-    P.ParamSpec("robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda",
-                read_only=True),
-    P.ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
-    P.ParamSpec("joints", [], "Controlled joints (default: the robot's)", read_only=True,
-                dynamic=True),
-    P.ParamSpec("mode", "realtime", "realtime | lockstep", read_only=True),
-    P.ParamSpec("physics_rate", 1000.0, "Physics step rate [Hz], a multiple of publish_rate",
-                read_only=True),
-    P.ParamSpec("publish_rate", 1000.0, "Joint state rate [Hz] (= command period in lockstep)",
-                read_only=True),
-    P.ParamSpec("initial_positions", 0.0, "Initial joint positions [rad], one value or one per "
-                "joint", read_only=True, dynamic=True),
-    P.ParamSpec("viscous_friction", 0.0, "Plant viscous friction F [N·m·s/rad], one value or "
-                "one per joint, >= 0 (the URDF's joint damping is not applied)", dynamic=True),
-    P.ParamSpec("payload_mass", 0.0, "Point mass [kg] at the centre of mass of the last "
-                "joint's link, >= 0 (plant only)"),
-    P.ParamSpec("command_timeout", 0.1, "Realtime: brake when no valid command for this long "
-                "[s], > 0"),
-    P.ParamSpec("republish_period", 0.5, "Lockstep: send an unanswered state again after this "
-                "wall time [s], > 0", read_only=True),
-    P.ParamSpec("start_paused", False, "Start paused (call ~/resume to run)", read_only=True),
-    P.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
+    params.ParamSpec(
+        "robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda", read_only=True
+    ),
+    params.ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
+    params.ParamSpec(
+        "joints", [], "Controlled joints (default: the robot's)", read_only=True, dynamic=True
+    ),
+    params.ParamSpec("mode", "realtime", "realtime | lockstep", read_only=True),
+    params.ParamSpec(
+        "physics_rate",
+        1000.0,
+        "Physics step rate [Hz], a multiple of publish_rate",
+        read_only=True,
+    ),
+    params.ParamSpec(
+        "publish_rate",
+        1000.0,
+        "Joint state rate [Hz] (= command period in lockstep)",
+        read_only=True,
+    ),
+    params.ParamSpec(
+        "initial_positions",
+        0.0,
+        "Initial joint positions [rad], one value or one per joint",
+        read_only=True,
+        dynamic=True,
+    ),
+    params.ParamSpec(
+        "viscous_friction",
+        0.0,
+        "Plant viscous friction F [N·m·s/rad], one value or "
+        "one per joint, >= 0 (the URDF's joint damping is not applied)",
+        dynamic=True,
+    ),
+    params.ParamSpec(
+        "payload_mass",
+        0.0,
+        "Point mass [kg] at the centre of mass of the last joint's link, >= 0 (plant only)",
+    ),
+    params.ParamSpec(
+        "command_timeout", 0.1, "Realtime: brake when no valid command for this long [s], > 0"
+    ),
+    params.ParamSpec(
+        "republish_period",
+        0.5,
+        "Lockstep: send an unanswered state again after this wall time [s], > 0",
+        read_only=True,
+    ),
+    params.ParamSpec("start_paused", False, "Start paused (call ~/resume to run)", read_only=True),
+    params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
 )
 
 
 class SimBridge(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("sim_bridge", **kwargs)
-        P.declare(self, PARAMETERS)
-        v = P.current_values(self, PARAMETERS)
+        params.declare(self, PARAMETERS)
+        v = params.current_values(self, PARAMETERS)
         spec = resolve_robot(v["robot"] if not v["urdf_path"] else "", v["urdf_path"])
-        model = RobotModel(spec, P.names(v, "joints") or None)
+        model = RobotModel(spec, params.names(v, "joints") or None)
         self.joints = model.joint_names
         self.n = len(self.joints)
-        self.mode = P.choice(v, "mode", MODES)
-        physics_rate = P.positive(v, "physics_rate")
-        publish_rate = P.positive(v, "publish_rate")
+        self.mode = params.choice(v, "mode", MODES)
+        physics_rate = params.positive(v, "physics_rate")
+        publish_rate = params.positive(v, "publish_rate")
         substeps = round(physics_rate / publish_rate)
         if substeps < 1 or abs(substeps * publish_rate - physics_rate) > 1e-6 * physics_rate:
             raise ValueError("physics_rate must be an integer multiple of publish_rate")
         self.substeps = substeps
         self.physics_dt_ns = round(1e9 / physics_rate)
         self.period_ns = substeps * self.physics_dt_ns
-        self.command_timeout = P.positive(v, "command_timeout")
-        republish = P.positive(v, "republish_period")
+        self.command_timeout = params.positive(v, "command_timeout")
+        republish = params.positive(v, "republish_period")
         self.plant = Plant(
-            spec, self.joints, physics_rate,
-            friction=P.numbers(v, "viscous_friction"),
-            payload_mass=P.nonnegative_number(v, "payload_mass"),
-            initial_positions=per_joint(P.numbers(v, "initial_positions"), self.n,
-                                        "initial_positions"),
+            spec,
+            self.joints,
+            physics_rate,
+            friction=params.numbers(v, "viscous_friction"),
+            payload_mass=params.nonnegative_number(v, "payload_mass"),
+            initial_positions=per_joint(
+                params.numbers(v, "initial_positions"), self.n, "initial_positions"
+            ),
             locked_positions=model.locked_positions,
             gui=bool(v["gui"]),
         )
@@ -146,18 +177,19 @@ class SimBridge(Node):
         )
 
     # -- parameters --------------------------------------------------------------------
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        values = P.current_values(self, PARAMETERS)
-        for p in params:
+    def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        values = params.current_values(self, PARAMETERS)
+        for p in changes:
             if p.name in values:
                 values[p.name] = p.value
         try:
-            friction = per_joint(P.numbers(values, "viscous_friction"), self.n,
-                                 "viscous_friction")
+            friction = per_joint(
+                params.numbers(values, "viscous_friction"), self.n, "viscous_friction"
+            )
             if np.any(friction < 0):
                 raise ValueError("'viscous_friction' must be >= 0")
-            payload = P.nonnegative_number(values, "payload_mass")
-            timeout = P.positive(values, "command_timeout")
+            payload = params.nonnegative_number(values, "payload_mass")
+            timeout = params.positive(values, "command_timeout")
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
@@ -193,8 +225,7 @@ class SimBridge(Node):
         try:
             tau = effort_arrays(msg, self._order)
         except ValueError as err:
-            self.get_logger().warning(f"rejected effort command: {err}",
-                                      throttle_duration_sec=1.0)
+            self.get_logger().warning(f"rejected effort command: {err}", throttle_duration_sec=1.0)
             return
         self._command(tau, stamp_to_ns(msg.header.stamp))
 
@@ -202,8 +233,7 @@ class SimBridge(Node):
         try:
             tau = float_array(msg, self.n)
         except ValueError as err:
-            self.get_logger().warning(f"rejected command array: {err}",
-                                      throttle_duration_sec=1.0)
+            self.get_logger().warning(f"rejected command array: {err}", throttle_duration_sec=1.0)
             return
         self._command(tau, None)
 
@@ -242,8 +272,7 @@ class SimBridge(Node):
 
     def _physics_step(self) -> None:
         fresh = (
-            self._tau is not None
-            and (self._t_ns - self._tau_t_ns) * 1e-9 <= self.command_timeout
+            self._tau is not None and (self._t_ns - self._tau_t_ns) * 1e-9 <= self.command_timeout
         )
         if fresh:
             if self._braking:

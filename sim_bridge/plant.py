@@ -109,7 +109,11 @@ class Plant:
         )
         for link in range(-1, pb.getNumJoints(self.body, c)):
             pb.changeDynamics(
-                self.body, link, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
+                self.body,
+                link,
+                linearDamping=0.0,
+                angularDamping=0.0,
+                jointDamping=0.0,
                 physicsClientId=c,
             )
         pb.setJointMotorControlArray(
@@ -122,7 +126,11 @@ class Plant:
             target = float(locked.get(name, 0.0))
             pb.resetJointState(self.body, j, target, 0.0, physicsClientId=c)
             pb.setJointMotorControl2(
-                self.body, j, pb.POSITION_CONTROL, targetPosition=target, force=LOCK_FORCE,
+                self.body,
+                j,
+                pb.POSITION_CONTROL,
+                targetPosition=target,
+                force=LOCK_FORCE,
                 physicsClientId=c,
             )
             self._locked.append((j, target))
@@ -216,8 +224,12 @@ class Plant:
         c, body, idx = self.client, self.body, self._idx
         forces = np.where(np.isfinite(self.effort_limits), self.effort_limits, LOCK_FORCE)
         pb.setJointMotorControlArray(
-            body, idx, pb.VELOCITY_CONTROL, targetVelocities=[0.0] * self.n,
-            forces=forces.tolist(), physicsClientId=c,
+            body,
+            idx,
+            pb.VELOCITY_CONTROL,
+            targetVelocities=[0.0] * self.n,
+            forces=forces.tolist(),
+            physicsClientId=c,
         )
         for _ in range(substeps):
             pb.stepSimulation(physicsClientId=c)

@@ -12,14 +12,14 @@ A constant torque u (the iterative gravity estimate u_i) can be added to any mod
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 
 import numpy as np
 
 from joint_space_control.laws.gains import PDGains
 
 
-class GravityCompensation(str, Enum):
+class GravityCompensation(StrEnum):
     FULL = "full"
     NONE = "none"
     DESIRED = "desired"

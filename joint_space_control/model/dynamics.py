@@ -91,7 +91,8 @@ class RobotModel:
     @property
     def effort_limits(self) -> np.ndarray:
         """URDF effort limits [N·m or N] of the controlled joints (inf where absent)."""
-        lim = np.array([self.model.effortLimit[self.model.joints[j].idx_v] for j in self._joint_ids])
+        iv = [self.model.joints[j].idx_v for j in self._joint_ids]
+        lim = np.array(self.model.effortLimit[iv])
         return np.where(lim > 0, lim, np.inf)
 
     @property
@@ -144,7 +145,8 @@ class RobotModel:
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
         """g(q) = ∂U/∂q [N·m]."""
-        return self._out(pin.computeGeneralizedGravity(self.model, self.data, self.configuration(q)))
+        g = pin.computeGeneralizedGravity(self.model, self.data, self.configuration(q))
+        return self._out(g)
 
     def nonlinear_effects(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """n(q, q̇) = C(q, q̇) q̇ + F q̇ + g(q) [N·m]."""
@@ -153,9 +155,7 @@ class RobotModel:
 
     def rnea(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
         """Inverse dynamics τ = B(q) q̈ + C(q, q̇) q̇ + F q̇ + g(q) [N·m]."""
-        tau = pin.rnea(
-            self.model, self.data, self.configuration(q), self._v(dq), self._v(ddq)
-        )
+        tau = pin.rnea(self.model, self.data, self.configuration(q), self._v(dq), self._v(ddq))
         return self._out(tau) + self.friction * dq
 
     # -- construction helpers --------------------------------------------------------

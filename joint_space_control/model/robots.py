@@ -137,7 +137,11 @@ def urdf_facts(urdf_path: Path) -> UrdfFacts:
         rpy = _floats(origin.get("rpy") if origin is not None else None, "0 0 0")
         mass_node, i = node.find("mass"), node.find("inertia")
         mass = float(mass_node.get("value")) if mass_node is not None else 0.0
-        get = (lambda k: float(i.get(k, 0.0))) if i is not None else (lambda k: 0.0)
+        attrs = i.attrib if i is not None else {}
+
+        def get(key: str, attrs: dict = attrs) -> float:
+            return float(attrs.get(key, 0.0))
+
         tensor = np.array(
             [
                 [get("ixx"), get("ixy"), get("ixz")],

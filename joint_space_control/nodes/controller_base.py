@@ -23,15 +23,15 @@ from trajectory_msgs.msg import JointTrajectory
 from joint_space_control.laws.pd_gravity import TorqueSplit
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.nodes import parameters as P
+from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.messages import (
     CONTROL_QOS,
     REFERENCE_QOS,
     JointOrder,
     joint_state_arrays,
     make_joint_state,
-    state_message,
     stamp_to_ns,
+    state_message,
     trajectory_from_msg,
 )
 from joint_space_control.trajectories.reference import Reference, Sample, Trajectory
@@ -41,21 +41,42 @@ TRIGGERS = ("timer", "state")
 MAX_DT = 0.1
 
 COMMON_PARAMETERS = (
-    P.ParamSpec("robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda",
-                read_only=True),
-    P.ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
-    P.ParamSpec("joints", [], "Controlled joints in command order (default: the robot's)",
-                read_only=True, dynamic=True),
-    P.ParamSpec("rate", 1000.0, "Control rate [Hz] with trigger=timer, > 0", read_only=True),
-    P.ParamSpec("trigger", "timer",
-                "timer: command at 'rate' from the latest state; state: answer every "
-                "joint state once (lockstep)", read_only=True),
-    P.ParamSpec("state_timeout", 0.1,
-                "Stop commanding when the newest joint state is older than this [s], > 0"),
-    P.ParamSpec("kp", 100.0, "Proportional gain K_P [N·m/rad], one value or one per joint, "
-                "> 0", dynamic=True),
-    P.ParamSpec("kd", 20.0, "Derivative gain K_D [N·m·s/rad], one value or one per joint, "
-                ">= 0", dynamic=True),
+    params.ParamSpec(
+        "robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda", read_only=True
+    ),
+    params.ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
+    params.ParamSpec(
+        "joints",
+        [],
+        "Controlled joints in command order (default: the robot's)",
+        read_only=True,
+        dynamic=True,
+    ),
+    params.ParamSpec("rate", 1000.0, "Control rate [Hz] with trigger=timer, > 0", read_only=True),
+    params.ParamSpec(
+        "trigger",
+        "timer",
+        "timer: command at 'rate' from the latest state; state: answer every "
+        "joint state once (lockstep)",
+        read_only=True,
+    ),
+    params.ParamSpec(
+        "state_timeout",
+        0.1,
+        "Stop commanding when the newest joint state is older than this [s], > 0",
+    ),
+    params.ParamSpec(
+        "kp",
+        100.0,
+        "Proportional gain K_P [N·m/rad], one value or one per joint, > 0",
+        dynamic=True,
+    ),
+    params.ParamSpec(
+        "kd",
+        20.0,
+        "Derivative gain K_D [N·m·s/rad], one value or one per joint, >= 0",
+        dynamic=True,
+    ),
 )
 
 
@@ -63,24 +84,26 @@ class JointController(Node):
     """Base class of the controller nodes (not a node on its own)."""
 
     #: Extra parameters of the concrete controller.
-    LAW_PARAMETERS: tuple[P.ParamSpec, ...] = ()
+    LAW_PARAMETERS: tuple[params.ParamSpec, ...] = ()
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self._specs = COMMON_PARAMETERS + self.LAW_PARAMETERS
-        P.declare(self, self._specs)
-        values = P.current_values(self, self._specs)
-        spec = resolve_robot(values["robot"] if not values["urdf_path"] else "",
-                             values["urdf_path"])
-        self.model = RobotModel(spec, P.names(values, "joints") or None,
-                                self.model_perturbation(values))
+        params.declare(self, self._specs)
+        values = params.current_values(self, self._specs)
+        spec = resolve_robot(
+            values["robot"] if not values["urdf_path"] else "", values["urdf_path"]
+        )
+        self.model = RobotModel(
+            spec, params.names(values, "joints") or None, self.model_perturbation(values)
+        )
         self.joints = self.model.joint_names
         self.n = len(self.joints)
         self.effort_limits = self.model.effort_limits
-        self.trigger = P.choice(values, "trigger", TRIGGERS)
-        rate = P.positive(values, "rate")
+        self.trigger = params.choice(values, "trigger", TRIGGERS)
+        rate = params.positive(values, "rate")
         self.config = self.build_config(values)
-        self._state_timeout = P.positive(values, "state_timeout")
+        self._state_timeout = params.positive(values, "state_timeout")
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._order = JointOrder(self.joints)
@@ -119,29 +142,30 @@ class JointController(Node):
     def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
         raise NotImplementedError
 
-    def after_command(self, ref: Sample, q: np.ndarray, tau_unclamped: np.ndarray,
-                      dt: float) -> None:
+    def after_command(
+        self, ref: Sample, q: np.ndarray, tau_unclamped: np.ndarray, dt: float
+    ) -> None:
         """Update internal state (integrators) once the command is out."""
 
     def reset_state(self) -> None:
         """Forget internal state (integrators): bumpless start after a gap or restart."""
 
     # -- parameters --------------------------------------------------------------------
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        values = P.current_values(self, self._specs)
-        for p in params:
+    def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        values = params.current_values(self, self._specs)
+        for p in changes:
             if p.name in values:
                 values[p.name] = p.value
         try:
             config = self.build_config(values)
-            timeout = P.positive(values, "state_timeout")
+            timeout = params.positive(values, "state_timeout")
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
         self.config = config  # swapped whole; a tick reads it once
         self._state_timeout = timeout
         self.get_logger().info(
-            "parameters updated: " + ", ".join(f"{p.name}={p.value}" for p in params)
+            "parameters updated: " + ", ".join(f"{p.name}={p.value}" for p in changes)
         )
         return SetParametersResult(successful=True)
 
@@ -172,8 +196,9 @@ class JointController(Node):
             return
         stamp = stamp_to_ns(msg.header.stamp)
         if stamp < self._state_ns:
-            self.get_logger().warning("joint state time went backwards: restarting from the "
-                                      "measured configuration")
+            self.get_logger().warning(
+                "joint state time went backwards: restarting from the measured configuration"
+            )
             self._restart()
         self._q, self._dq, self._state_ns = q, dq, stamp
         if self.trigger == "state":
@@ -227,9 +252,22 @@ class JointController(Node):
         cmd.effort = tau.tolist()
         self._pub.publish(cmd)
         self._answered_ns = self._state_ns
-        self._state.data = np.concatenate((
-            [self._state_ns * 1e-9], ref.q, ref.dq, ref.ddq, q, dq, ref.q - q, ref.dq - dq,
-            split.feedback, split.model, split.gravity, unclamped, tau,
-        )).tolist()
+        self._state.data = np.concatenate(
+            (
+                [self._state_ns * 1e-9],
+                ref.q,
+                ref.dq,
+                ref.ddq,
+                q,
+                dq,
+                ref.q - q,
+                ref.dq - dq,
+                split.feedback,
+                split.model,
+                split.gravity,
+                unclamped,
+                tau,
+            )
+        ).tolist()
         self._state_pub.publish(self._state)
         self.after_command(ref, q, unclamped, dt)

@@ -35,8 +35,18 @@ REFERENCE_QOS = QoSProfile(
 
 #: Rows of the controller state matrix published on ``~/state`` (see README).
 STATE_FIELDS = (
-    "q_d", "dq_d", "ddq_d", "q", "dq", "error", "derror",
-    "tau_feedback", "tau_model", "tau_gravity", "tau_unclamped", "tau",
+    "q_d",
+    "dq_d",
+    "ddq_d",
+    "q",
+    "dq",
+    "error",
+    "derror",
+    "tau_feedback",
+    "tau_model",
+    "tau_gravity",
+    "tau_unclamped",
+    "tau",
 )
 
 
@@ -139,16 +149,16 @@ def trajectory_from_msg(
         if len(point.velocities):
             velocities.append(_field(point.velocities, size, f"point {k} velocity")[idx])
         if len(point.accelerations):
-            accelerations.append(
-                _field(point.accelerations, size, f"point {k} acceleration")[idx]
-            )
+            accelerations.append(_field(point.accelerations, size, f"point {k} acceleration")[idx])
     for name, given in (("velocities", velocities), ("accelerations", accelerations)):
         if given and len(given) != len(positions):
             raise ValueError(f"{name} given on some points only")
     stamp = stamp_to_ns(msg.header.stamp)
     start = now if stamp == 0 else (stamp - origin_ns) * 1e-9
     return Trajectory.build(
-        start, np.array(times), np.array(positions),
+        start,
+        np.array(times),
+        np.array(positions),
         np.array(velocities) if velocities else None,
         np.array(accelerations) if accelerations else None,
     )
@@ -160,8 +170,9 @@ def state_message(joints: Sequence[str]) -> Float64MultiArray:
     msg = Float64MultiArray()
     n = len(joints)
     msg.layout.dim = [
-        MultiArrayDimension(label=",".join(STATE_FIELDS), size=len(STATE_FIELDS),
-                            stride=len(STATE_FIELDS) * n),
+        MultiArrayDimension(
+            label=",".join(STATE_FIELDS), size=len(STATE_FIELDS), stride=len(STATE_FIELDS) * n
+        ),
         MultiArrayDimension(label=",".join(joints), size=n, stride=n),
     ]
     msg.layout.data_offset = 1

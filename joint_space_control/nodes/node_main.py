@@ -6,6 +6,7 @@ import sys
 from collections.abc import Callable
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
@@ -21,7 +22,7 @@ def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None
     try:
         try:
             node = factory()
-        except ValueError as err:
+        except (ValueError, ParameterException) as err:
             print(f"error: {err}", file=sys.stderr)
             sys.exit(2)
         executor = SingleThreadedExecutor()

@@ -22,7 +22,7 @@ from joint_space_control.laws.pd_gravity import (
     pid_torque_split,
 )
 from joint_space_control.model.dynamics import per_joint
-from joint_space_control.nodes import parameters as P
+from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.controller_base import JointController
 from joint_space_control.nodes.node_main import run_node
 from joint_space_control.trajectories.reference import Sample
@@ -37,12 +37,25 @@ class PDConfig:
 
 class PDGravityController(JointController):
     LAW_PARAMETERS = (
-        P.ParamSpec("gravity_compensation", "full",
-                    "Gravity term: full = g(q) | none = pure PD | desired = g(q_d)"),
-        P.ParamSpec("ki", 0.0, "Integral gain K_I [N·m/(rad·s)], one value or one per joint, "
-                    ">= 0; anti-windup at the effort limits", dynamic=True),
-        P.ParamSpec("gravity_estimate", 0.0, "Constant torque u [N·m] added to the law, one "
-                    "value or one per joint (iterative gravity estimation)", dynamic=True),
+        params.ParamSpec(
+            "gravity_compensation",
+            "full",
+            "Gravity term: full = g(q) | none = pure PD | desired = g(q_d)",
+        ),
+        params.ParamSpec(
+            "ki",
+            0.0,
+            "Integral gain K_I [N·m/(rad·s)], one value or one per joint, "
+            ">= 0; anti-windup at the effort limits",
+            dynamic=True,
+        ),
+        params.ParamSpec(
+            "gravity_estimate",
+            0.0,
+            "Constant torque u [N·m] added to the law, one "
+            "value or one per joint (iterative gravity estimation)",
+            dynamic=True,
+        ),
     )
 
     def __init__(self, **kwargs: Any) -> None:
@@ -54,10 +67,14 @@ class PDGravityController(JointController):
 
     def build_config(self, values: dict[str, Any]) -> PDConfig:
         n = self.n
-        gains = PDGains.build(n, P.numbers(values, "kp"), P.numbers(values, "kd"),
-                              P.numbers(values, "ki"))
+        gains = PDGains.build(
+            n,
+            params.numbers(values, "kp"),
+            params.numbers(values, "kd"),
+            params.numbers(values, "ki"),
+        )
         mode = GravityCompensation.parse(values["gravity_compensation"])
-        estimate = per_joint(P.numbers(values, "gravity_estimate"), n, "gravity_estimate")
+        estimate = per_joint(params.numbers(values, "gravity_estimate"), n, "gravity_estimate")
         return PDConfig(gains, mode, estimate)
 
     def _gravity(self, q: np.ndarray, q_des: np.ndarray, mode: GravityCompensation) -> np.ndarray:
@@ -75,12 +92,14 @@ class PDGravityController(JointController):
         gravity = self._gravity(q, ref.q, config.gravity) + config.gravity_estimate
         return pid_torque_split(q, dq, ref.q, self._integral, config.gains, gravity)
 
-    def after_command(self, ref: Sample, q: np.ndarray, tau_unclamped: np.ndarray,
-                      dt: float) -> None:
+    def after_command(
+        self, ref: Sample, q: np.ndarray, tau_unclamped: np.ndarray, dt: float
+    ) -> None:
         gains = self.config.gains
         if np.any(gains.ki > 0):
-            self._integral = integrate_error(self._integral, ref.q - q, dt, gains,
-                                             tau_unclamped, self.effort_limits)
+            self._integral = integrate_error(
+                self._integral, ref.q - q, dt, gains, tau_unclamped, self.effort_limits
+            )
         elif np.any(self._integral):
             self._integral = np.zeros(self.n)
 

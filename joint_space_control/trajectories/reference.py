@@ -4,8 +4,9 @@ A reference is a validated, immutable sequence of points at times relative to it
 time (seconds in the controller's clock). Between points the reference is interpolated by
 quintic Hermite segments, continuous in position, velocity and acceleration where the
 points give them (velocities and accelerations that are not given are taken as zero).
-From its start time the reference moves from the sample the controller was tracking at
-that instant (a new trajectory replaces the old one from its start time); after the last point it holds the last point.
+From its start time the reference moves from the sample the controller was tracking
+at that instant (a new trajectory replaces the old one from its start time); after the
+last point it holds the last point.
 A single point with ``time_from_start`` 0 is a set-point (a step).
 """
 
@@ -54,8 +55,12 @@ class Trajectory:
         for name, arr in (("velocities", vel), ("accelerations", acc)):
             if arr.shape != positions.shape:
                 raise ValueError(f"{name} have shape {arr.shape}, positions {positions.shape}")
-        for name, arr in (("times", times), ("positions", positions), ("velocities", vel),
-                          ("accelerations", acc)):
+        for name, arr in (
+            ("times", times),
+            ("positions", positions),
+            ("velocities", vel),
+            ("accelerations", acc),
+        ):
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"non-finite {name}")
         if not np.isfinite(start):
@@ -84,7 +89,10 @@ class Reference:
             self._a = np.vstack((initial.ddq, tr.accelerations))
         else:
             self._t, self._p, self._v, self._a = (
-                tr.times, tr.positions, tr.velocities, tr.accelerations,
+                tr.times,
+                tr.positions,
+                tr.velocities,
+                tr.accelerations,
             )
         self._initial = initial
 
@@ -103,12 +111,19 @@ class Reference:
         if s >= self._t[-1]:
             return Sample(self._p[-1], np.zeros_like(self._p[-1]), np.zeros_like(self._p[-1]))
         k = int(np.searchsorted(self._t, s, side="right")) - 1
-        return _quintic(self._t[k], self._t[k + 1], self._p[k : k + 2], self._v[k : k + 2],
-                        self._a[k : k + 2], s)
+        return _quintic(
+            self._t[k],
+            self._t[k + 1],
+            self._p[k : k + 2],
+            self._v[k : k + 2],
+            self._a[k : k + 2],
+            s,
+        )
 
 
-def _quintic(t0: float, t1: float, p: np.ndarray, v: np.ndarray, a: np.ndarray,
-             t: float) -> Sample:
+def _quintic(
+    t0: float, t1: float, p: np.ndarray, v: np.ndarray, a: np.ndarray, t: float
+) -> Sample:
     """Quintic Hermite segment matching position, velocity, acceleration at both ends."""
     h = t1 - t0
     x = (t - t0) / h

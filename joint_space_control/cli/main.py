@@ -1,0 +1,37 @@
+"""``jsc``: the package's command line. Subcommands wire the library; no maths here."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from joint_space_control.cli import demo
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="jsc", description="joint_space_control tools")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p_demo = sub.add_parser(
+        "demo",
+        help="run the default closed loop (planar_2dof, PD + g(q), "
+        "a step) headless and write its results",
+    )
+    p_demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output directory")
+    p_demo.add_argument("--duration", type=float, default=4.0, help="simulated time [s]")
+    p_demo.add_argument(
+        "--domain-id",
+        type=int,
+        default=None,
+        help="ROS domain for the run (default: one derived from the pid)",
+    )
+    args = parser.parse_args(argv)
+    if args.command == "demo":
+        domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
+        return demo.run(args.out, args.duration, domain)
+    return 2  # pragma: no cover - argparse requires a command
+
+
+if __name__ == "__main__":
+    sys.exit(main())

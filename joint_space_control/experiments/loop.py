@@ -1,0 +1,79 @@
+"""A lockstep closed loop of real node processes, started deterministically.
+
+The simulator starts paused; once the controller and the simulator are connected, the
+reference is published and acknowledged by every subscriber, and only then is the simulator
+resumed. Same inputs therefore give the same run, however loaded the machine is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from joint_space_control.experiments.probe import LoopProbe
+from joint_space_control.experiments.processes import ProcessGroup
+
+
+class ClosedLoop:
+    """sim_bridge (lockstep) + one controller (answering every state) + a probe."""
+
+    def __init__(
+        self,
+        workdir: Path,
+        domain_id: int,
+        robot: str,
+        controller: str = "pd_gravity_controller",
+        controller_params: Mapping[str, Any] | None = None,
+        sim_params: Mapping[str, Any] | None = None,
+    ) -> None:
+        self.robot = robot
+        self.controller = controller
+        self.group = ProcessGroup(workdir, domain_id)
+        self.probe: LoopProbe | None = None
+        try:
+            self.group.start(
+                "sim_bridge",
+                {"robot": robot, **(sim_params or {}), "mode": "lockstep", "start_paused": True},
+            )
+            self.group.start(
+                controller, {"robot": robot, **(controller_params or {}), "trigger": "state"}
+            )
+            self.probe = LoopProbe(domain_id)
+            self.probe.wait_for_graph(check=self.group.check_alive)
+        except BaseException:
+            self.close()
+            raise
+
+    def start(
+        self,
+        joints: Sequence[str],
+        positions: Sequence[Sequence[float]],
+        times: Sequence[float] = (0.0,),
+    ) -> None:
+        """Send the reference (acknowledged) and only then let the simulator run."""
+        self.probe.send_reference(joints, positions, times)
+        response = self.probe.call_trigger("/sim_bridge/resume")
+        if not response.success:
+            raise RuntimeError(f"sim_bridge did not resume: {response.message}")
+
+    def run_until(self, t_sim: float, timeout: float = 300.0) -> None:
+        self.probe.run_until(t_sim, timeout, check=self.group.check_alive)
+
+    def final_state(self) -> tuple[np.ndarray, np.ndarray]:
+        _, q, dq, _ = self.probe.recording.arrays()
+        return q[-1], dq[-1]
+
+    def close(self) -> None:
+        if self.probe is not None:
+            self.probe.close()
+            self.probe = None
+        self.group.stop_all()
+
+    def __enter__(self) -> ClosedLoop:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

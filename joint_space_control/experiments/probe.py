@@ -1,0 +1,186 @@
+"""A client node that drives and observes a running loop: waits for the graph, sends
+references, calls the simulator's services, sets parameters through the standard parameter
+services (what ``ros2 param set`` uses) and collects joint states."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Duration
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from joint_space_control.nodes.messages import REFERENCE_QOS, stamp_to_ns
+
+RECORD_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10000, reliability=ReliabilityPolicy.RELIABLE
+)
+
+
+@dataclass
+class Recording:
+    """Joint states received, in arrival order."""
+
+    stamps: list[int] = field(default_factory=list)
+    positions: list[list[float]] = field(default_factory=list)
+    velocities: list[list[float]] = field(default_factory=list)
+    efforts: list[list[float]] = field(default_factory=list)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(t [s], q, q̇, τ), one row per distinct stamp (repeats dropped)."""
+        stamps = np.array(self.stamps, dtype=np.int64)
+        _, first = np.unique(stamps, return_index=True)
+        keep = np.sort(first)
+        return (
+            stamps[keep] * 1e-9,
+            np.array(self.positions)[keep],
+            np.array(self.velocities)[keep],
+            np.array(self.efforts)[keep],
+        )
+
+
+class LoopProbe:
+    """Owns its own rclpy context in the given domain; close() when done."""
+
+    def __init__(self, domain_id: int, name: str = "jsc_probe") -> None:
+        os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.recording = Recording()
+        self.joint_names: tuple[str, ...] = ()
+        self.node.create_subscription(JointState, "joint_states", self._on_state, RECORD_QOS)
+        self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
+        self._param_clients: dict[str, AsyncParameterClient] = {}
+
+    def _on_state(self, msg: JointState) -> None:
+        self.joint_names = tuple(msg.name)
+        rec = self.recording
+        rec.stamps.append(stamp_to_ns(msg.header.stamp))
+        rec.positions.append(list(msg.position))
+        rec.velocities.append(list(msg.velocity))
+        rec.efforts.append(list(msg.effort))
+
+    # -- spinning ----------------------------------------------------------------------
+    def spin_until(
+        self,
+        done: Callable[[], bool],
+        timeout: float,
+        what: str,
+        check: Callable[[], None] | None = None,
+    ) -> None:
+        end = time.monotonic() + timeout
+        while not done():
+            if time.monotonic() > end:
+                raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
+            if check is not None:
+                check()
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def latest_time(self) -> float:
+        return self.recording.stamps[-1] * 1e-9 if self.recording.stamps else -1.0
+
+    def run_until(
+        self, t_sim: float, timeout: float, check: Callable[[], None] | None = None
+    ) -> None:
+        """Spin until a joint state at simulation time ≥ t_sim has arrived."""
+        self.spin_until(
+            lambda: self.latest_time() >= t_sim - 1e-9,
+            timeout,
+            f"simulation time {t_sim} s",
+            check,
+        )
+
+    def wait_for_graph(
+        self, timeout: float = 20.0, check: Callable[[], None] | None = None
+    ) -> None:
+        """Wait until a controller and the simulator are connected through the topics."""
+        n = self.node
+        self.spin_until(
+            lambda: (
+                n.count_publishers("joint_states") >= 1
+                and n.count_subscribers("joint_states") >= 2
+                and n.count_publishers("effort_command") >= 1
+                and n.count_subscribers("effort_command") >= 1
+                and self._ref_pub.get_subscription_count() >= 1
+            ),
+            timeout,
+            "the simulator and the controller to connect",
+            check,
+        )
+
+    # -- acting ------------------------------------------------------------------------
+    def send_reference(
+        self,
+        joints: Sequence[str],
+        positions: Sequence[Sequence[float]],
+        times: Sequence[float] = (0.0,),
+        start_ns: int = 0,
+    ) -> None:
+        """Publish a trajectory and wait until every subscriber has acknowledged it."""
+        msg = JointTrajectory(joint_names=list(joints))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(start_ns, 1_000_000_000)
+        for t, pos in zip(times, positions, strict=True):
+            sec, nsec = divmod(round(t * 1e9), 1_000_000_000)
+            msg.points.append(
+                JointTrajectoryPoint(
+                    positions=[float(p) for p in pos],
+                    time_from_start=Duration(sec=sec, nanosec=nsec),
+                )
+            )
+        self._ref_pub.publish(msg)
+        if not self._ref_pub.wait_for_all_acked(rclpy.duration.Duration(seconds=5.0)):
+            raise TimeoutError("reference not acknowledged by every subscriber")
+
+    def call_trigger(self, service: str, timeout: float = 10.0) -> Trigger.Response:
+        client = self.node.create_client(Trigger, service)
+        try:
+            self.spin_until(client.service_is_ready, timeout, f"service {service}")
+            future = client.call_async(Trigger.Request())
+            self.spin_until(future.done, timeout, f"answer of {service}")
+            return future.result()
+        finally:
+            self.node.destroy_client(client)
+
+    def set_parameters(
+        self, node_name: str, values: dict[str, Any], timeout: float = 10.0
+    ) -> list[Any]:
+        """Set parameters of a remote node; returns the SetParametersResult of each."""
+        client = self._param_clients.get(node_name)
+        if client is None:
+            client = AsyncParameterClient(self.node, node_name)
+            self._param_clients[node_name] = client
+        self.spin_until(
+            lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}"
+        )
+        future = client.set_parameters([Parameter(k, value=v) for k, v in values.items()])
+        self.spin_until(future.done, timeout, f"set_parameters on {node_name}")
+        return list(future.result().results)
+
+    def get_parameters(self, node_name: str, names: list[str], timeout: float = 10.0) -> list:
+        client = self._param_clients.get(node_name) or AsyncParameterClient(self.node, node_name)
+        self._param_clients[node_name] = client
+        self.spin_until(
+            lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}"
+        )
+        future = client.get_parameters(names)
+        self.spin_until(future.done, timeout, f"get_parameters on {node_name}")
+        return [parameter_value_to_python(v) for v in future.result().values]
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

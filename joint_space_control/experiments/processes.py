@@ -1,0 +1,136 @@
+"""Start nodes as separate processes, the way a launch file would, and always stop them.
+
+Each node runs as ``python -m <module> --ros-args -r __node:=<name> --params-file <yaml>``
+in an isolated ROS domain (``ROS_DOMAIN_ID``) with localhost-only discovery.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+#: Executable name → module with ``main`` (the console scripts of the package).
+EXECUTABLES = {
+    "sim_bridge": "sim_bridge.node",
+    "pd_gravity_controller": "joint_space_control.nodes.pd_gravity_controller",
+}
+
+
+def isolated_env(domain_id: int, base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """Environment for one run: its own domain, discovery on this machine only."""
+    if not 0 <= domain_id <= 101:
+        raise ValueError("ROS_DOMAIN_ID must be in 0..101")
+    env = dict(os.environ if base is None else base)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.setdefault("PYTHONUNBUFFERED", "1")
+    return env
+
+
+class NodeProcess:
+    """One node process with its parameters file and log file."""
+
+    def __init__(
+        self,
+        executable: str,
+        name: str,
+        params: Mapping[str, Any],
+        workdir: Path,
+        env: Mapping[str, str],
+        extra_args: list[str] | None = None,
+    ) -> None:
+        if executable not in EXECUTABLES:
+            raise ValueError(f"unknown executable '{executable}'")
+        workdir.mkdir(parents=True, exist_ok=True)
+        self.name = name
+        self.params_file = workdir / f"{name}.params.yaml"
+        self.params_file.write_text(yaml.safe_dump({"/**": {"ros__parameters": dict(params)}}))
+        self.log_path = workdir / f"{name}.log"
+        self._log = open(self.log_path, "w")  # noqa: SIM115 - closed in stop()
+        cmd = [
+            sys.executable,
+            "-m",
+            EXECUTABLES[executable],
+            "--ros-args",
+            "-r",
+            f"__node:={name}",
+            "--params-file",
+            str(self.params_file),
+            *(extra_args or []),
+        ]
+        self.proc = subprocess.Popen(
+            cmd, env=dict(env), stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True
+        )
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def signal(self, sig: int) -> None:
+        if self.alive():
+            self.proc.send_signal(sig)
+
+    def stop(self, timeout: float = 5.0) -> int:
+        """SIGINT, then SIGTERM, then SIGKILL: the process is gone when this returns."""
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            if not self.alive():
+                break
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                continue
+        self.proc.wait()
+        self._log.close()
+        return self.proc.returncode
+
+    def log(self) -> str:
+        self._log.flush()
+        return self.log_path.read_text(errors="replace")
+
+
+class ProcessGroup:
+    """Context manager owning node processes; every one is stopped on exit, also on error."""
+
+    def __init__(self, workdir: Path, domain_id: int) -> None:
+        self.workdir = Path(workdir)
+        self.env = isolated_env(domain_id)
+        self.nodes: dict[str, NodeProcess] = {}
+
+    def start(
+        self,
+        executable: str,
+        params: Mapping[str, Any],
+        name: str | None = None,
+        extra_args: list[str] | None = None,
+    ) -> NodeProcess:
+        name = name or executable
+        node = NodeProcess(executable, name, params, self.workdir, self.env, extra_args)
+        self.nodes[name] = node
+        return node
+
+    def check_alive(self) -> None:
+        dead = [n for n in self.nodes.values() if not n.alive()]
+        if dead:
+            raise RuntimeError(
+                "; ".join(
+                    f"node '{n.name}' exited with {n.proc.returncode}:\n{n.log()[-2000:]}"
+                    for n in dead
+                )
+            )
+
+    def stop_all(self) -> None:
+        for node in reversed(list(self.nodes.values())):
+            node.stop()
+
+    def __enter__(self) -> ProcessGroup:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop_all()
