@@ -30,8 +30,8 @@ from joint_space_control.model.robots import (
 
 
 def per_joint(value: float | Sequence[float], n: int, name: str) -> np.ndarray:
-    """Broadcast a scalar or check a length-n sequence; finite values only."""
-    arr = np.asarray(value, dtype=float).reshape(-1)
+    """Broadcast a scalar or check a length-n sequence; finite values only (a new array)."""
+    arr = np.array(value, dtype=float).reshape(-1)
     if arr.size == 1:
         arr = np.full(n, float(arr[0]))
     if arr.size != n:

@@ -61,22 +61,22 @@ def ns_to_stamp(ns: int) -> Time:
 class JointOrder:
     """Maps the joint names of incoming messages to the controlled-joint order.
 
-    The permutation is cached for the last name list seen, so steady traffic costs one
-    tuple comparison per message.
+    The permutation is cached for the last name list seen (per ``allow_extra``), so steady
+    traffic costs one tuple comparison per message.
     """
 
     def __init__(self, joints: Sequence[str]) -> None:
         self.joints = tuple(joints)
         self._known = set(self.joints)
-        self._names: tuple[str, ...] | None = None
-        self._index = np.arange(len(self.joints))
+        self._cache: dict[bool, tuple[tuple[str, ...], np.ndarray]] = {}
 
     def index(self, names: Sequence[str], allow_extra: bool) -> np.ndarray:
         """Position in ``names`` of each controlled joint. Raises for a missing or duplicated
         joint, and for a name that is not controlled unless ``allow_extra``."""
         names = tuple(names)
-        if names == self._names:
-            return self._index
+        cached = self._cache.get(allow_extra)
+        if cached is not None and cached[0] == names:
+            return cached[1]
         if len(set(names)) != len(names):
             raise ValueError(f"duplicated joint names {list(names)}")
         missing = [j for j in self.joints if j not in names]
@@ -87,9 +87,9 @@ class JointOrder:
             if unknown:
                 raise ValueError(f"unknown joints {unknown}")
         lookup = {name: i for i, name in enumerate(names)}
-        self._index = np.array([lookup[j] for j in self.joints])
-        self._names = names
-        return self._index
+        index = np.array([lookup[j] for j in self.joints])
+        self._cache[allow_extra] = (names, index)
+        return index
 
 
 def _field(values: Sequence[float], size: int, what: str) -> np.ndarray:

@@ -44,14 +44,15 @@ class Trajectory:
         accelerations: np.ndarray | None = None,
     ) -> Trajectory:
         """Validate and build: finite values, matching shapes, times ≥ 0 strictly increasing."""
-        times = np.asarray(times, dtype=float).reshape(-1)
-        positions = np.atleast_2d(np.asarray(positions, dtype=float))
+        # Copies: the trajectory is frozen and must not share memory with the caller.
+        times = np.array(times, dtype=float).reshape(-1)
+        positions = np.atleast_2d(np.array(positions, dtype=float))
         m, n = positions.shape
         if m == 0 or times.size != m:
             raise ValueError(f"{times.size} times for {m} points")
         zeros = np.zeros((m, n))
-        vel = zeros if velocities is None else np.atleast_2d(np.asarray(velocities, float))
-        acc = zeros if accelerations is None else np.atleast_2d(np.asarray(accelerations, float))
+        vel = zeros if velocities is None else np.atleast_2d(np.array(velocities, float))
+        acc = zeros if accelerations is None else np.atleast_2d(np.array(accelerations, float))
         for name, arr in (("velocities", vel), ("accelerations", acc)):
             if arr.shape != positions.shape:
                 raise ValueError(f"{name} have shape {arr.shape}, positions {positions.shape}")
@@ -99,7 +100,7 @@ class Reference:
     @classmethod
     def hold(cls, q: np.ndarray, start: float = 0.0) -> Reference:
         """A set-point at q from ``start`` on."""
-        q = np.asarray(q, dtype=float)
+        q = np.array(q, dtype=float)  # a copy: the held set-point must not change
         zero = np.zeros_like(q)
         return cls(Trajectory.build(start, [0.0], q[None, :]), Sample(q, zero, zero))
 

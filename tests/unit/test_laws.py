@@ -211,13 +211,6 @@ def test_gains_reject_invalid(kwargs, match):
         PDGains.build(2, **kwargs)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="library bug: PDGains.build keeps a view of the caller's float array, so the "
-    "'validated, immutable' gains change (even to invalid values) when the caller's "
-    "array is modified afterwards",
-)
 def test_gains_do_not_alias_the_callers_array():
     kp = np.array([100.0, 200.0])
     gains = PDGains.build(2, kp, 10.0)

@@ -142,14 +142,6 @@ def test_state_without_velocity_rejected():
         joint_state_arrays(msg, JointOrder(JOINTS))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=pytest.fail.Exception,  # "DID NOT RAISE"
-    reason="library bug: JointOrder.index returns its cached permutation for a name list "
-    "it has seen before without re-checking allow_extra, so after a joint state with an "
-    "extra joint, a command/trajectory with the same names is accepted and the extra "
-    "joint silently ignored (the controller shares one JointOrder for both)",
-)
 def test_cached_names_still_reject_unknown_joints():
     order = JointOrder(JOINTS)
     names_ = ["j1", "j2", "j3", "finger"]
@@ -158,11 +150,6 @@ def test_cached_names_still_reject_unknown_joints():
         effort_arrays(joint_state(names_, [1.0, 2.0, 3.0, 4.0]), order)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=pytest.fail.Exception,
-    reason="library bug: same JointOrder cache bypass as above, through trajectory_from_msg",
-)
 def test_cached_names_still_reject_unknown_joints_in_trajectories():
     order = JointOrder(JOINTS)
     names_ = ["j1", "j2", "j3", "finger"]

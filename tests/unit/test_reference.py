@@ -68,12 +68,6 @@ def test_build_fills_zero_derivatives_and_freezes():
             arr[0] = 1.0
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="library bug: Trajectory.build keeps a view of a caller's float 'times' array "
-    "(validated times can be changed afterwards, e.g. made non-increasing)",
-)
 def test_build_does_not_alias_the_callers_times():
     times = np.array([0.0, 1.0])
     tr = Trajectory.build(0.0, times, [[0.0], [1.0]])
@@ -81,12 +75,6 @@ def test_build_does_not_alias_the_callers_times():
     np.testing.assert_array_equal(tr.times, [0.0, 1.0])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=ValueError,
-    reason="library bug: Trajectory.build calls setflags(write=False) on the caller's own "
-    "2-D positions array, so the caller's buffer becomes read-only as a side effect",
-)
 def test_build_leaves_the_callers_positions_writable():
     positions = np.zeros((2, 1))
     Trajectory.build(0.0, [0.0, 1.0], positions)
