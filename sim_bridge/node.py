@@ -36,7 +36,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from joint_space_control.model.dynamics import RobotModel, per_joint
+from joint_space_control.arrays import per_joint
+from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.messages import (
@@ -178,10 +179,7 @@ class SimBridge(Node):
 
     # -- parameters --------------------------------------------------------------------
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        values = params.current_values(self, PARAMETERS)
-        for p in changes:
-            if p.name in values:
-                values[p.name] = p.value
+        values = params.with_changes(self, PARAMETERS, changes)
         try:
             friction = per_joint(
                 params.numbers(values, "viscous_friction"), self.n, "viscous_friction"

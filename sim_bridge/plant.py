@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 
-from joint_space_control.model.dynamics import per_joint
+from joint_space_control.arrays import per_joint
 from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
 
 GRAVITY = (0.0, 0.0, -9.81)

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from joint_space_control.arrays import per_joint
+
 RISE_LOW = 0.1
 """Lower level of the rise time, as a fraction of the step."""
 RISE_HIGH = 0.9
@@ -73,18 +75,6 @@ def _samples(values: ArrayLike, n: int, name: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"'{name}' contains NaN or infinite values")
     return np.ascontiguousarray(arr.T)
-
-
-def _per_joint(value: ArrayLike, n: int, name: str) -> np.ndarray:
-    """A scalar broadcast to n joints, or n finite values."""
-    arr = np.asarray(value, dtype=float).reshape(-1)
-    if arr.size == 1:
-        arr = np.full(n, float(arr[0]))
-    if arr.size != n:
-        raise ValueError(f"'{name}' needs 1 or {n} values, got {arr.size}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"'{name}' must be finite, got {arr.tolist()}")
-    return arr
 
 
 def _step_index(t: np.ndarray, t_step: float | None) -> tuple[int, float]:
@@ -246,7 +236,7 @@ def step_metrics(
         raise ValueError(f"'y' must be 1-D (use step_metrics_per_joint), got {np.shape(y)}")
     y = _samples(y, t.size, "y")[0]
     if target is not None:
-        target = float(_per_joint(target, 1, "target")[0])
+        target = float(per_joint(target, 1, "target")[0])
     i0, t_step = _step_index(t, t_step)
     return _step_metrics(t, y, target, i0, t_step, _check_window(final_window))
 
@@ -265,7 +255,7 @@ def step_metrics_per_joint(
     t = _time(t)
     Y = _samples(Y, t.size, "Y")
     n = Y.shape[0]
-    goals = [None] * n if targets is None else _per_joint(targets, n, "targets").tolist()
+    goals = [None] * n if targets is None else per_joint(targets, n, "targets").tolist()
     i0, t_step = _step_index(t, t_step)
     final_window = _check_window(final_window)
     return [_step_metrics(t, Y[j], goals[j], i0, t_step, final_window) for j in range(n)]
@@ -358,7 +348,7 @@ def torque_demand(
     if limits is None:
         fraction = np.full(n, math.nan)
     else:
-        lim = _per_joint(limits, n, "limits")
+        lim = per_joint(limits, n, "limits")
         if np.any(lim <= 0.0):
             raise ValueError(f"'limits' must be > 0, got {lim.tolist()}")
         saturated = (np.abs(tau) >= (lim - float(saturation_tol))[:, None]).astype(float)

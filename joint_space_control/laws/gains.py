@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from joint_space_control.model.dynamics import per_joint
+from joint_space_control.arrays import per_joint
 
 
 def nonnegative(value: float | Sequence[float], n: int, name: str) -> np.ndarray:

@@ -22,23 +22,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from joint_space_control.arrays import per_joint
 from joint_space_control.model.robots import (
     ACTUATED_JOINT_TYPES,
     RobotSpec,
     urdf_facts,
 )
-
-
-def per_joint(value: float | Sequence[float], n: int, name: str) -> np.ndarray:
-    """Broadcast a scalar or check a length-n sequence; finite values only (a new array)."""
-    arr = np.array(value, dtype=float).reshape(-1)
-    if arr.size == 1:
-        arr = np.full(n, float(arr[0]))
-    if arr.size != n:
-        raise ValueError(f"'{name}' needs 1 or {n} values, got {arr.size}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"'{name}' must be finite, got {arr.tolist()}")
-    return arr
 
 
 @dataclass(frozen=True)

@@ -152,10 +152,7 @@ class JointController(Node):
 
     # -- parameters --------------------------------------------------------------------
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        values = params.current_values(self, self._specs)
-        for p in changes:
-            if p.name in values:
-                values[p.name] = p.value
+        values = params.with_changes(self, self._specs, changes)
         try:
             config = self.build_config(values)
             timeout = params.positive(values, "state_timeout")

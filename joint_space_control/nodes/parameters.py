@@ -43,6 +43,15 @@ def current_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
     return {spec.name: node.get_parameter(spec.name).value for spec in specs}
 
 
+def with_changes(node: Node, specs: Iterable[ParamSpec], changes: Iterable[Any]) -> dict[str, Any]:
+    """The values the node would have after a parameter update (not applied yet)."""
+    values = current_values(node, specs)
+    for p in changes:
+        if p.name in values:
+            values[p.name] = p.value
+    return values
+
+
 def numbers(values: Mapping[str, Any], name: str) -> list[float]:
     """A number or a list of numbers (no booleans, no strings) as a list of floats."""
     value = values[name]

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from joint_space_control.arrays import per_joint
 from joint_space_control.laws.gains import PDGains
 from joint_space_control.laws.pd_gravity import (
     GravityCompensation,
@@ -21,7 +22,6 @@ from joint_space_control.laws.pd_gravity import (
     integrate_error,
     pid_torque_split,
 )
-from joint_space_control.model.dynamics import per_joint
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.controller_base import JointController
 from joint_space_control.nodes.node_main import run_node

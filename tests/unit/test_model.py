@@ -24,7 +24,8 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from joint_space_control.model.dynamics import ModelPerturbation, RobotModel, per_joint
+from joint_space_control.arrays import per_joint
+from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import (
     actuated_joints,
     builtin_robots,
