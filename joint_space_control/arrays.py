@@ -17,3 +17,12 @@ def per_joint(value: float | Sequence[float], n: int, name: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"'{name}' must be finite, got {arr.tolist()}")
     return arr
+
+
+def nonnegative(value: float | Sequence[float], n: int, name: str) -> np.ndarray:
+    """Per-joint, finite, ≥ 0 values (a single value applies to every joint); read-only."""
+    arr = per_joint(value, n, name)
+    if np.any(arr < 0):
+        raise ValueError(f"'{name}' must be >= 0, got {arr.tolist()}")
+    arr.setflags(write=False)
+    return arr

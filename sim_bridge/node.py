@@ -36,7 +36,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from joint_space_control.arrays import per_joint
+from joint_space_control.arrays import nonnegative, per_joint
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.nodes import parameters as params
@@ -181,11 +181,9 @@ class SimBridge(Node):
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         values = params.with_changes(self, PARAMETERS, changes)
         try:
-            friction = per_joint(
+            friction = nonnegative(
                 params.numbers(values, "viscous_friction"), self.n, "viscous_friction"
             )
-            if np.any(friction < 0):
-                raise ValueError("'viscous_friction' must be >= 0")
             payload = params.nonnegative_number(values, "payload_mass")
             timeout = params.positive(values, "command_timeout")
         except ValueError as err:

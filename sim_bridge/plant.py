@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 
-from joint_space_control.arrays import per_joint
+from joint_space_control.arrays import nonnegative, per_joint
 from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
 
 GRAVITY = (0.0, 0.0, -9.81)
@@ -166,10 +166,7 @@ class Plant:
 
     # -- perturbations -----------------------------------------------------------------
     def set_friction(self, friction: float | Sequence[float]) -> None:
-        value = per_joint(friction, self.n, "viscous_friction")
-        if np.any(value < 0):
-            raise ValueError("viscous_friction must be >= 0")
-        self.friction = value
+        self.friction = nonnegative(friction, self.n, "viscous_friction")
 
     def set_payload(self, mass: float) -> None:
         if not np.isfinite(mass) or mass < 0:

@@ -61,13 +61,11 @@ class LoopProbe:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.recording = Recording()
-        self.joint_names: tuple[str, ...] = ()
         self.node.create_subscription(JointState, "joint_states", self._on_state, RECORD_QOS)
         self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
         self._param_clients: dict[str, AsyncParameterClient] = {}
 
     def _on_state(self, msg: JointState) -> None:
-        self.joint_names = tuple(msg.name)
         rec = self.recording
         rec.stamps.append(stamp_to_ns(msg.header.stamp))
         rec.positions.append(list(msg.position))
@@ -155,27 +153,26 @@ class LoopProbe:
         finally:
             self.node.destroy_client(client)
 
-    def set_parameters(
-        self, node_name: str, values: dict[str, Any], timeout: float = 10.0
-    ) -> list[Any]:
-        """Set parameters of a remote node; returns the SetParametersResult of each."""
+    def _param_client(self, node_name: str, timeout: float) -> AsyncParameterClient:
+        """The (cached) parameter client of a remote node, once its services are up."""
         client = self._param_clients.get(node_name)
         if client is None:
             client = AsyncParameterClient(self.node, node_name)
             self._param_clients[node_name] = client
-        self.spin_until(
-            lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}"
-        )
+        self.spin_until(client.services_are_ready, timeout, f"parameter services of {node_name}")
+        return client
+
+    def set_parameters(
+        self, node_name: str, values: dict[str, Any], timeout: float = 10.0
+    ) -> list[Any]:
+        """Set parameters of a remote node; returns the SetParametersResult of each."""
+        client = self._param_client(node_name, timeout)
         future = client.set_parameters([Parameter(k, value=v) for k, v in values.items()])
         self.spin_until(future.done, timeout, f"set_parameters on {node_name}")
         return list(future.result().results)
 
     def get_parameters(self, node_name: str, names: list[str], timeout: float = 10.0) -> list:
-        client = self._param_clients.get(node_name) or AsyncParameterClient(self.node, node_name)
-        self._param_clients[node_name] = client
-        self.spin_until(
-            lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}"
-        )
+        client = self._param_client(node_name, timeout)
         future = client.get_parameters(names)
         self.spin_until(future.done, timeout, f"get_parameters on {node_name}")
         return [parameter_value_to_python(v) for v in future.result().values]

@@ -7,16 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from joint_space_control.arrays import per_joint
-
-
-def nonnegative(value: float | Sequence[float], n: int, name: str) -> np.ndarray:
-    """Per-joint, finite, ≥ 0 values (a single value applies to every joint)."""
-    arr = per_joint(value, n, name)
-    if np.any(arr < 0):
-        raise ValueError(f"'{name}' must be >= 0, got {arr.tolist()}")
-    arr.setflags(write=False)
-    return arr
+from joint_space_control.arrays import nonnegative
 
 
 @dataclass(frozen=True)
