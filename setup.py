@@ -66,6 +66,7 @@ setup(
         "console_scripts": [
             "sim_bridge = sim_bridge.node:main",
             "pd_gravity_controller = joint_space_control.nodes.pd_gravity_controller:main",
+            "recorder = joint_space_control.nodes.recorder:main",
             "jsc = joint_space_control.cli.main:main",
         ],
     },

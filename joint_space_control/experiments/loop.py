@@ -18,7 +18,8 @@ from joint_space_control.experiments.processes import ProcessGroup
 
 
 class ClosedLoop:
-    """sim_bridge (lockstep) + one controller (answering every state) + a probe."""
+    """sim_bridge (lockstep) + one controller (answering every state) + a probe, and a
+    recorder writing the bag ``record`` when one is given."""
 
     def __init__(
         self,
@@ -28,12 +29,17 @@ class ClosedLoop:
         controller: str = "pd_gravity_controller",
         controller_params: Mapping[str, Any] | None = None,
         sim_params: Mapping[str, Any] | None = None,
+        record: Path | None = None,
+        recorder_params: Mapping[str, Any] | None = None,
     ) -> None:
         self.robot = robot
         self.controller = controller
+        self.bag = record
         self.group = ProcessGroup(workdir, domain_id)
         self.probe: LoopProbe | None = None
         try:
+            if record is not None:  # first: it sees every node's parameters and config
+                self.group.start("recorder", {**(recorder_params or {}), "output": str(record)})
             self.group.start(
                 "sim_bridge",
                 {"robot": robot, **(sim_params or {}), "mode": "lockstep", "start_paused": True},
@@ -43,6 +49,12 @@ class ClosedLoop:
             )
             self.probe = LoopProbe(domain_id)
             self.probe.wait_for_graph(check=self.group.check_alive)
+            if record is not None:
+                self.probe.wait_for_subscriber(
+                    "recorder",
+                    ["/joint_states", "/effort_command", "/reference", f"/{controller}/state"],
+                    check=self.group.check_alive,
+                )
         except BaseException:
             self.close()
             raise
@@ -61,6 +73,14 @@ class ClosedLoop:
 
     def run_until(self, t_sim: float, timeout: float = 300.0) -> None:
         self.probe.run_until(t_sim, timeout, check=self.group.check_alive)
+
+    def pause(self, settle: float = 0.3) -> None:
+        """Pause the simulator and collect what is still in flight: afterwards the probe's
+        last joint state is the last one the simulator published."""
+        response = self.probe.call_trigger("/sim_bridge/pause")
+        if not response.success:
+            raise RuntimeError(f"sim_bridge did not pause: {response.message}")
+        self.probe.spin_for(settle)
 
     def final_state(self) -> tuple[np.ndarray, np.ndarray]:
         _, q, dq, _ = self.probe.recording.arrays()

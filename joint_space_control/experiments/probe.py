@@ -91,6 +91,11 @@ class LoopProbe:
     def latest_time(self) -> float:
         return self.recording.stamps[-1] * 1e-9 if self.recording.stamps else -1.0
 
+    def spin_for(self, seconds: float) -> None:
+        """Handle incoming messages for ``seconds`` of wall time."""
+        end = time.monotonic() + seconds
+        self.spin_until(lambda: time.monotonic() >= end, seconds + 1.0, "nothing")
+
     def run_until(
         self, t_sim: float, timeout: float, check: Callable[[], None] | None = None
     ) -> None:
@@ -119,6 +124,24 @@ class LoopProbe:
             "the simulator and the controller to connect",
             check,
         )
+
+    def wait_for_subscriber(
+        self,
+        node_name: str,
+        topics: Sequence[str],
+        timeout: float = 20.0,
+        check: Callable[[], None] | None = None,
+    ) -> None:
+        """Wait until the node ``node_name`` subscribes to every topic in ``topics``."""
+        n = self.node
+
+        def subscribed() -> bool:
+            return all(
+                any(i.node_name == node_name for i in n.get_subscriptions_info_by_topic(t))
+                for t in topics
+            )
+
+        self.spin_until(subscribed, timeout, f"'{node_name}' to subscribe to {topics}", check)
 
     # -- acting ------------------------------------------------------------------------
     def send_reference(

@@ -6,7 +6,8 @@ torque split from the measured state and the reference sample. Everything here i
 handling and bookkeeping; the maths is in :mod:`joint_space_control.laws`.
 
 Topics (relative names): subscribes ``joint_states`` and ``reference``; publishes
-``effort_command`` and ``~/state``.
+``effort_command``, ``~/state`` (every tick) and ``~/config`` (latched JSON, at start and
+after every accepted parameter change).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
 from joint_space_control.laws.pd_gravity import TorqueSplit
@@ -25,9 +27,11 @@ from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.messages import (
+    CONFIG_QOS,
     CONTROL_QOS,
     REFERENCE_QOS,
     JointOrder,
+    config_message,
     joint_state_arrays,
     make_joint_state,
     stamp_to_ns,
@@ -85,6 +89,8 @@ class JointController(Node):
 
     #: Extra parameters of the concrete controller.
     LAW_PARAMETERS: tuple[params.ParamSpec, ...] = ()
+    #: The executable (and default node name) of the concrete controller.
+    EXECUTABLE = ""
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
@@ -100,8 +106,9 @@ class JointController(Node):
         self.joints = self.model.joint_names
         self.n = len(self.joints)
         self.effort_limits = self.model.effort_limits
+        self._robot_name = spec.name
+        self._rate = rate = params.positive(values, "rate")
         self.trigger = params.choice(values, "trigger", TRIGGERS)
-        rate = params.positive(values, "rate")
         self.config = self.build_config(values)
         self._state_timeout = params.positive(values, "state_timeout")
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -120,6 +127,8 @@ class JointController(Node):
 
         self._pub = self.create_publisher(JointState, "effort_command", CONTROL_QOS)
         self._state_pub = self.create_publisher(type(self._state), "~/state", CONTROL_QOS)
+        self._config_pub = self.create_publisher(String, "~/config", CONFIG_QOS)
+        self._publish_config(values)
         # The reference subscription is created first, so that a reference and a joint state
         # that are both waiting are handled in that order (deterministic lockstep start).
         self.create_subscription(JointTrajectory, "reference", self._on_reference, REFERENCE_QOS)
@@ -137,6 +146,11 @@ class JointController(Node):
         return ModelPerturbation()
 
     def build_config(self, values: dict[str, Any]) -> Any:
+        """An immutable configuration with at least ``gains`` (:class:`PDGains`)."""
+        raise NotImplementedError
+
+    def law_name(self, config: Any) -> str:
+        """The law in force, as named in ``~/config`` (README)."""
         raise NotImplementedError
 
     def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
@@ -161,10 +175,32 @@ class JointController(Node):
             return SetParametersResult(successful=False, reason=str(err))
         self.config = config  # swapped whole; a tick reads it once
         self._state_timeout = timeout
+        self._publish_config(values)
         self.get_logger().info(
             "parameters updated: " + ", ".join(f"{p.name}={p.value}" for p in changes)
         )
         return SetParametersResult(successful=True)
+
+    def _publish_config(self, values: dict[str, Any]) -> None:
+        lower, upper = self.model.position_limits
+        self._config_pub.publish(
+            config_message(
+                {
+                    "node": self.get_fully_qualified_name(),
+                    "executable": self.EXECUTABLE,
+                    "law": self.law_name(self.config),
+                    "robot": self._robot_name,
+                    "joints": list(self.joints),
+                    "rate": self._rate,
+                    "trigger": self.trigger,
+                    "effort_limits": self.effort_limits,
+                    "position_limits": [[lo, hi] for lo, hi in zip(lower, upper, strict=True)],
+                    "kp": self.config.gains.kp,
+                    "kd": self.config.gains.kd,
+                    "parameters": values,
+                }
+            )
+        )
 
     # -- inputs ------------------------------------------------------------------------
     def _now(self) -> float:

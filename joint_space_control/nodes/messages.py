@@ -6,13 +6,15 @@ Every function here either returns arrays in the controlled-joint order or raise
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from trajectory_msgs.msg import JointTrajectory
 
 from joint_space_control.trajectories.reference import Trajectory
@@ -33,6 +35,15 @@ REFERENCE_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 
+#: Controller configuration (``~/config``): latched, so that a recorder or a tool that starts
+#: later still receives the configuration in force.
+CONFIG_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
 #: Rows of the controller state matrix published on ``~/state`` (see README).
 STATE_FIELDS = (
     "q_d",
@@ -48,6 +59,28 @@ STATE_FIELDS = (
     "tau_unclamped",
     "tau",
 )
+
+
+def _json_number(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def config_message(description: dict[str, Any]) -> String:
+    """``~/config``: the controller's configuration as one JSON object (README, "Controller
+    configuration"); non-finite numbers (absent limits) become ``null``."""
+
+    def plain(value: Any) -> Any:
+        if isinstance(value, np.ndarray):
+            value = value.tolist()
+        if isinstance(value, dict):
+            return {k: plain(v) for k, v in value.items()}
+        if isinstance(value, list | tuple):
+            return [plain(v) for v in value]
+        if isinstance(value, float):
+            return _json_number(value)
+        return value
+
+    return String(data=json.dumps(plain(description), allow_nan=False))
 
 
 def stamp_to_ns(stamp: Time) -> int:

@@ -58,6 +58,8 @@ class PDGravityController(JointController):
         ),
     )
 
+    EXECUTABLE = "pd_gravity_controller"
+
     def __init__(self, **kwargs: Any) -> None:
         self._integral: np.ndarray | None = None
         self._g_des_key: bytes | None = None
@@ -76,6 +78,9 @@ class PDGravityController(JointController):
         mode = GravityCompensation.parse(values["gravity_compensation"])
         estimate = per_joint(params.numbers(values, "gravity_estimate"), n, "gravity_estimate")
         return PDConfig(gains, mode, estimate)
+
+    def law_name(self, config: PDConfig) -> str:
+        return "pd_gravity"  # the variant: gravity_compensation, ki in "parameters"
 
     def _gravity(self, q: np.ndarray, q_des: np.ndarray, mode: GravityCompensation) -> np.ndarray:
         if mode is GravityCompensation.FULL:

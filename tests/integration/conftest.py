@@ -55,6 +55,7 @@ def make_loop(tmp_path: Path) -> Iterator[Any]:
         robot: str,
         controller_params: dict[str, Any] | None = None,
         sim_params: dict[str, Any] | None = None,
+        record: Path | None = None,
     ) -> ClosedLoop:
         loop = ClosedLoop(
             tmp_path / f"run{len(loops)}",
@@ -62,6 +63,7 @@ def make_loop(tmp_path: Path) -> Iterator[Any]:
             robot,
             controller_params={**GAINS[robot], **(controller_params or {})},
             sim_params=sim_params,
+            record=record,
         )
         loops.append(loop)
         return loop

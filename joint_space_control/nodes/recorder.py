@@ -1,0 +1,201 @@
+"""``recorder``: records topics to a rosbag2 bag (MCAP by default) with the rosbags library.
+
+The node discovers the selected topics as they appear in the graph (every
+``discovery_period`` seconds of wall time, so it also works before ``/clock`` runs) and
+subscribes to each with raw (serialized) delivery, so messages are written as received,
+without a deserialize/serialize round trip. The subscription's QoS adapts to the publishers,
+as ``ros2 bag record`` does: best effort if any publisher is best effort, transient local
+(latched topics such as ``~/config``) if all publishers are; it is re-created once if a
+publisher with other QoS turns up later.
+
+Each message is stamped with its receive time in the node clock: the simulation time with
+``use_sim_time:=true``, else the system time. Ctrl-C and SIGTERM close the bag cleanly (the
+MCAP summary and ``metadata.yaml`` are written).
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from typing import Any
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.subscription import Subscription
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
+from rosbags.interfaces import QosTime as BagQosTime
+
+from joint_space_control.nodes import parameters as params
+from joint_space_control.nodes.node_main import run_node
+from joint_space_control.recording.bag_writer import STORAGES, BagWriter, RecordedTopic
+from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection
+
+#: Messages a subscription queues while the recorder is busy writing.
+QUEUE_DEPTH = 1000
+
+PARAMETERS = (
+    params.ParamSpec(
+        "output",
+        "",
+        "Bag directory to create (must not exist); default rosbag2_<date>-<time>",
+        read_only=True,
+    ),
+    params.ParamSpec(
+        "topics",
+        [],
+        "Topic names or patterns (* ? []) to record; relative ones in the node's namespace; "
+        f"empty: {', '.join(DEFAULT_TOPICS)}",
+        read_only=True,
+        dynamic=True,
+    ),
+    params.ParamSpec("storage", "mcap", "Storage format: mcap | sqlite3", read_only=True),
+    params.ParamSpec(
+        "discovery_period", 0.2, "Wall time between looks for new topics [s], > 0", read_only=True
+    ),
+)
+
+_RELIABILITY = {
+    ReliabilityPolicy.RELIABLE: QosReliability.RELIABLE,
+    ReliabilityPolicy.BEST_EFFORT: QosReliability.BEST_EFFORT,
+}
+_DURABILITY = {
+    DurabilityPolicy.TRANSIENT_LOCAL: QosDurability.TRANSIENT_LOCAL,
+    DurabilityPolicy.VOLATILE: QosDurability.VOLATILE,
+}
+_NO_TIME = BagQosTime(0, 0)
+
+
+def _bag_qos(profile: QoSProfile) -> Qos:
+    """A publisher's offered QoS in the form rosbag2 metadata stores it."""
+    return Qos(
+        history=QosHistory.UNKNOWN,
+        depth=0,
+        reliability=_RELIABILITY.get(profile.reliability, QosReliability.UNKNOWN),
+        durability=_DURABILITY.get(profile.durability, QosDurability.UNKNOWN),
+        deadline=_NO_TIME,
+        lifespan=_NO_TIME,
+        liveliness=QosLiveliness.AUTOMATIC,
+        liveliness_lease_duration=_NO_TIME,
+        avoid_ros_namespace_conventions=False,
+    )
+
+
+def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
+    """The QoS that receives from every publisher: reliable unless one is best effort,
+    transient local only if all publishers keep their last messages for late joiners."""
+    best_effort = any(p.reliability == ReliabilityPolicy.BEST_EFFORT for p in offered)
+    latched = bool(offered) and all(
+        p.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in offered
+    )
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=QUEUE_DEPTH,
+        reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
+
+
+def _same_qos(a: QoSProfile, b: QoSProfile) -> bool:
+    return a.reliability == b.reliability and a.durability == b.durability
+
+
+class Recorder(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("recorder", **kwargs)
+        params.declare(self, PARAMETERS)
+        values = params.current_values(self, PARAMETERS)
+        storage = params.choice(values, "storage", STORAGES)
+        self.selection = TopicSelection(params.names(values, "topics"), self.get_namespace())
+        period = params.positive(values, "discovery_period")
+        output = values["output"] or time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S")
+        self.bag = BagWriter(output, storage)  # fails here, before anything runs
+        self._recording: dict[str, tuple[Subscription, QoSProfile]] = {}
+        self._skipped: set[str] = set()
+        self._wall = Clock(clock_type=ClockType.STEADY_TIME)
+        try:
+            self._discover()
+            self.create_timer(period, self._discover, clock=self._wall)
+        except BaseException:
+            self.bag.close()
+            raise
+        self.get_logger().info(
+            f"recording {', '.join(self.selection.patterns)} to {output} ({storage})"
+        )
+
+    def _discover(self) -> None:
+        for name, types in self.get_topic_names_and_types():
+            if not self.selection.matches(name) or name in self._skipped:
+                continue
+            offered = [i.qos_profile for i in self.get_publishers_info_by_topic(name)]
+            qos = subscription_qos(offered)
+            current = self._recording.get(name)
+            if current is not None:
+                if not offered or _same_qos(current[1], qos):
+                    continue
+                self.destroy_subscription(current[0])  # a publisher needs other QoS
+                topic = self.bag.topics[name]
+            else:
+                msgtype = types[0]
+                if len(types) > 1 or not self.bag.knows(msgtype) or not _importable(msgtype):
+                    self._skipped.add(name)
+                    self.get_logger().warning(
+                        f"not recording {name}: "
+                        + (
+                            f"several types {types}"
+                            if len(types) > 1
+                            else f"no message definition for {msgtype}"
+                        )
+                    )
+                    continue
+                topic = self.bag.add_topic(name, msgtype, [_bag_qos(p) for p in offered])
+                self.get_logger().info(f"recording {name} [{msgtype}]")
+            self._subscribe(topic, qos)
+
+    def _subscribe(self, topic: RecordedTopic, qos: QoSProfile) -> None:
+        msg_class = _message_class(topic.msgtype)
+        clock = self.get_clock()
+        bag = self.bag
+        logger = self.get_logger()
+
+        def on_message(raw: bytes) -> None:
+            if not bag.write(topic, clock.now().nanoseconds, raw):
+                logger.warning(
+                    f"dropped a malformed {topic.msgtype} on {topic.name}",
+                    throttle_duration_sec=1.0,
+                )
+
+        sub = self.create_subscription(msg_class, topic.name, on_message, qos, raw=True)
+        self._recording[topic.name] = (sub, qos)
+
+    def close(self) -> None:
+        """Close the bag (summary and metadata written); called on Ctrl-C and SIGTERM."""
+        self.bag.close()
+        counts = ", ".join(f"{t.name}: {t.count}" for t in self.bag.topics.values())
+        print(
+            f"recorder: closed {self.bag.path} with {self.bag.message_count} messages"
+            + (f" ({counts})" if counts else ""),
+            flush=True,
+        )
+
+
+def _message_class(msgtype: str) -> type:
+    """The Python class of 'pkg/msg/Name' from its installed interface package."""
+    package, _, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{package}.msg"), name)
+
+
+def _importable(msgtype: str) -> bool:
+    try:
+        _message_class(msgtype)
+    except (ImportError, AttributeError, ValueError):
+        return False
+    return True
+
+
+def main(args: list[str] | None = None) -> None:
+    run_node(Recorder, args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1 @@
+"""Writing rosbag2 bags (rosbags library): no ROS import, used by the ``recorder`` node."""
