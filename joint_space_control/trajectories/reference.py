@@ -1,13 +1,56 @@
 r"""Joint-space references: what the controllers sample each tick as (q_d, q̇_d, q̈_d).
 
 A reference is a validated, immutable sequence of points at times relative to its start
-time (seconds in the controller's clock). Between points the reference is interpolated by
-quintic Hermite segments, continuous in position, velocity and acceleration where the
-points give them (velocities and accelerations that are not given are taken as zero).
-From its start time the reference moves from the sample the controller was tracking
-at that instant (a new trajectory replaces the old one from its start time); after the
-last point it holds the last point.
-A single point with ``time_from_start`` 0 is a set-point (a step).
+time (seconds in the controller's clock). From its start time the reference moves from the
+sample the controller was tracking at that instant (a new trajectory replaces the old one
+from its start time); after the last point it holds the last point with q̇_d = q̈_d = 0.
+
+Knots. When the first point is later than the start (``time_from_start`` > 0), the tracked
+sample (q, q̇, q̈) is an extra knot at time 0, so the reference leaves it smoothly. When the
+first point is at time 0, q_d jumps to it at the start time. A single point at time 0 is a
+set-point (a step: q_d jumps to it, q̇_d = q̈_d = 0); a single point at T > 0 is a move
+from the tracked sample to rest at the point (below, with two knots).
+
+Between knots the reference is a quintic Hermite segment matching (q, q̇, q̈) at both ends,
+so it is C² wherever neighbouring segments share a knot's (q, q̇, q̈). What a trajectory
+does not give is filled in as follows (n joints independently):
+
+- **Positions only** (no velocities, no accelerations): the knot velocities and the interior
+  knot accelerations are those of the C² cubic spline through the knot positions, clamped
+  at both ends: q̇ at the first knot is the tracked q̇, q̇ = 0 at the last knot (it comes to
+  rest). The spline's moments solve the (N+1)×(N+1) tridiagonal system
+
+      2h₀M₀ + h₀M₁ = 6(d₀ − q̇₀),
+      h_{k−1}M_{k−1} + 2(h_{k−1} + h_k)M_k + h_kM_{k+1} = 6(d_k − d_{k−1}),   0 < k < N,
+      h_{N−1}M_{N−1} + 2h_{N−1}M_N = 6(q̇_N − d_{N−1}),
+
+  h_k = t_{k+1} − t_k, d_k = (q_{k+1} − q_k)/h_k, M_k = q̈(t_k) (Thomas algorithm, strictly
+  diagonally dominant), and q̇_k = d_k − h_k(2M_k + M_{k+1})/6. Because quintic Hermite
+  interpolation with a cubic's own knot values reproduces the cubic, every interior segment
+  *is* the spline. At the two end knots the acceleration is not the spline's but the tracked
+  q̈ (first knot) and 0 (last knot): a clamped cubic cannot also match those, and a jump in
+  q̈_d is a jump in the inverse-dynamics torque. So the first and last segments are quintics
+  that differ from the spline's cubic by (Δq̈ h²/2)·x²(1 − x)³ resp. x³(1 − x)², x ∈ [0, 1],
+  at most 0.0173 Δq̈ h², and the whole reference is C² from the tracked sample into the final
+  hold. Points on one cubic polynomial whose end conditions match (tracked q̇, q̈ at the
+  start; q̇ = q̈ = 0 at the end) are reproduced exactly. With two knots (one point at
+  T > 0 after the tracked sample, or two points) there is no interior knot: the segment is
+  the quintic from the first knot's (q, q̇, q̈) to rest, the minimum-jerk profile when the
+  tracked sample is at rest (the behaviour before splines were added).
+- **Velocities given, no accelerations**: the velocities are used as given. On each
+  segment, q and q̇ at both ends fix a cubic; the acceleration at an interior knot is the
+  mean of the two one-sided cubic accelerations,
+  q̈(t_k⁻) = (−6d + 2q̇_k + 4q̇_{k+1})/h and q̈(t_k⁺) = (6d − 4q̇_k − 2q̇_{k+1})/h of the
+  segments ending and starting there. The quintic segments make the curve C² for any
+  choice; this one reproduces a C² cubic spline on interior segments whenever the given
+  velocities are the spline's (the one-sided values then agree). End knots as above
+  (tracked q̈ at the first, 0 at the last).
+- **Both given**: used as given.
+- **Accelerations without velocities** (unusual): velocities are taken as 0 at every point.
+
+At the first knot, a trajectory whose first point is at time 0 gives q (and q̇ when it
+gives velocities); what it does not give is taken from the tracked sample, so such a
+trajectory is discontinuous only where its first point differs from what was tracked.
 """
 
 from __future__ import annotations
@@ -26,13 +69,20 @@ class Sample:
 
 @dataclass(frozen=True)
 class Trajectory:
-    """Points (rows) at ``times`` [s] after ``start`` [s]; arrays of shape (m, n)."""
+    """Points (rows) at ``times`` [s] after ``start`` [s]; arrays of shape (m, n).
+
+    Velocities and accelerations that were not given are stored as zeros, and
+    ``velocities_given`` / ``accelerations_given`` say so: the :class:`Reference` then fills
+    them in (module docstring).
+    """
 
     start: float
     times: np.ndarray
     positions: np.ndarray
     velocities: np.ndarray
     accelerations: np.ndarray
+    velocities_given: bool = True
+    accelerations_given: bool = True
 
     @classmethod
     def build(
@@ -70,7 +120,15 @@ class Trajectory:
             raise ValueError(f"time_from_start must be >= 0 and strictly increasing: {times}")
         for arr in (times, positions, vel, acc):
             arr.setflags(write=False)
-        return cls(float(start), times, positions, vel, acc)
+        return cls(
+            float(start),
+            times,
+            positions,
+            vel,
+            acc,
+            velocities is not None,
+            accelerations is not None,
+        )
 
     @property
     def end(self) -> float:
@@ -84,17 +142,21 @@ class Reference:
         self.trajectory = trajectory
         tr = trajectory
         if tr.times[0] > 0:  # a leading segment from the state held when it arrived
-            self._t = np.concatenate(([0.0], tr.times))
-            self._p = np.vstack((initial.q, tr.positions))
-            self._v = np.vstack((initial.dq, tr.velocities))
-            self._a = np.vstack((initial.ddq, tr.accelerations))
+            t = np.concatenate(([0.0], tr.times))
+            p = np.vstack((initial.q, tr.positions))
+            v = np.vstack((initial.dq, tr.velocities))
+            a = np.vstack((initial.ddq, tr.accelerations))
         else:
-            self._t, self._p, self._v, self._a = (
-                tr.times,
-                tr.positions,
-                tr.velocities,
-                tr.accelerations,
-            )
+            t, p, v, a = tr.times, tr.positions, tr.velocities, tr.accelerations
+        if t.size > 1 and not tr.accelerations_given:
+            if tr.velocities_given:
+                a = _mean_cubic_accelerations(t, p, v)
+            else:
+                v, a = _clamped_cubic_spline(t, p, initial.dq, np.zeros_like(initial.dq))
+            a[0], a[-1] = initial.ddq, 0.0
+        for arr in (t, p, v, a):
+            arr.setflags(write=False)
+        self._t, self._p, self._v, self._a = t, p, v, a
         self._initial = initial
 
     @classmethod
@@ -103,6 +165,11 @@ class Reference:
         q = np.array(q, dtype=float)  # a copy: the held set-point must not change
         zero = np.zeros_like(q)
         return cls(Trajectory.build(start, [0.0], q[None, :]), Sample(q, zero, zero))
+
+    @property
+    def knots(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(times after the start [s], q, q̇, q̈) at the knots the segments join (read-only)."""
+        return self._t, self._p, self._v, self._a
 
     def sample(self, t: float) -> Sample:
         """(q_d, q̇_d, q̈_d) at time t [s] in the same clock as the trajectory's start."""
@@ -120,6 +187,54 @@ class Reference:
             self._a[k : k + 2],
             s,
         )
+
+
+def _clamped_cubic_spline(
+    t: np.ndarray, p: np.ndarray, v_first: np.ndarray, v_last: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Knot velocities and accelerations (M) of the C² cubic spline through (t_k, p_k) with
+    q̇(t_0) = v_first and q̇(t_N) = v_last; p has one column per joint (module docstring)."""
+    h = np.diff(t)[:, None]
+    d = np.diff(p, axis=0) / h
+    size = t.size
+    # Tridiagonal rows: lower[k] M_{k-1} + diag[k] M_k + upper[k] M_{k+1} = rhs[k].
+    lower = np.concatenate(([0.0], h[:, 0]))
+    upper = np.concatenate((h[:, 0], [0.0]))
+    diag = np.empty(size)
+    diag[0], diag[-1] = 2 * h[0, 0], 2 * h[-1, 0]
+    diag[1:-1] = 2 * (h[:-1, 0] + h[1:, 0])
+    rhs = np.empty_like(p)
+    rhs[0] = 6 * (d[0] - v_first)
+    rhs[-1] = 6 * (v_last - d[-1])
+    rhs[1:-1] = 6 * (d[1:] - d[:-1])
+    # Thomas algorithm: no pivoting needed, the matrix is strictly diagonally dominant.
+    c = np.empty(size)
+    r = np.empty_like(p)
+    c[0], r[0] = upper[0] / diag[0], rhs[0] / diag[0]
+    for k in range(1, size):
+        denom = diag[k] - lower[k] * c[k - 1]
+        c[k] = upper[k] / denom
+        r[k] = (rhs[k] - lower[k] * r[k - 1]) / denom
+    M = np.empty_like(p)
+    M[-1] = r[-1]
+    for k in range(size - 2, -1, -1):
+        M[k] = r[k] - c[k] * M[k + 1]
+    v = np.empty_like(p)
+    v[1:-1] = d[1:] - h[1:] * (2 * M[1:-1] + M[2:]) / 6
+    v[0], v[-1] = v_first, v_last  # exactly, not to rounding
+    return v, M
+
+
+def _mean_cubic_accelerations(t: np.ndarray, p: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Knot accelerations for given q, q̇: the mean of the one-sided accelerations of the
+    cubic Hermite segments meeting at each interior knot (the ends are set by the caller)."""
+    h = np.diff(t)[:, None]
+    d = np.diff(p, axis=0) / h
+    at_start = (6 * d - 4 * v[:-1] - 2 * v[1:]) / h  # q̈(t_k⁺) of segment k
+    at_end = (-6 * d + 2 * v[:-1] + 4 * v[1:]) / h  # q̈(t_{k+1}⁻) of segment k
+    a = np.zeros_like(p)
+    a[1:-1] = 0.5 * (at_end[:-1] + at_start[1:])
+    return a
 
 
 def _quintic(

@@ -207,3 +207,246 @@ def test_derivatives_match_finite_differences(three_points):
         plus, minus, mid = ref.sample(t + H), ref.sample(t - H), ref.sample(t)
         np.testing.assert_allclose((plus.q - minus.q) / (2 * H), mid.dq, rtol=0, atol=1e-6)
         np.testing.assert_allclose((plus.dq - minus.dq) / (2 * H), mid.ddq, rtol=0, atol=1e-6)
+
+
+# -- filling in missing derivatives (C² interpolation) --------------------------------------
+#
+# Continuity is checked at t_k ± EPS_K: |f(t + ε) − f(t − ε)| ≤ 2ε·sup|f′| with the test data
+# below (|Δq| ≤ 1.5, h ≥ 0.4 s) keeping sup|q⁽³⁾| well under 1e4, so 1e-5 covers q, q̇ and
+# q̈ alike, while a real discontinuity (the old zero-velocity knots, a jump in q̈) is ≥ 1e-2.
+
+EPS_K = 1e-9  # [s]
+TOL_K = 1e-5
+
+
+def rest(n: int) -> Sample:
+    return Sample(np.zeros(n), np.zeros(n), np.zeros(n))
+
+
+def assert_continuous(ref: Reference, t: float) -> None:
+    before, after = ref.sample(t - EPS_K), ref.sample(t + EPS_K)
+    for name in ("q", "dq", "ddq"):
+        np.testing.assert_allclose(
+            getattr(after, name), getattr(before, name), rtol=0, atol=TOL_K, err_msg=name
+        )
+
+
+def spline_by_slopes(t, p, v_first, v_last) -> np.ndarray:
+    """Knot velocities of the clamped cubic spline from the slope form (an independent
+    derivation, solved densely): h_k v_{k−1} + 2(h_{k−1} + h_k) v_k + h_{k−1} v_{k+1} =
+    3(h_k d_{k−1} + h_{k−1} d_k), v_0 and v_N given."""
+    t, p = np.asarray(t, float), np.asarray(p, float)
+    h, d = np.diff(t), np.diff(p, axis=0) / np.diff(t)[:, None]
+    size = len(t)
+    A, b = np.zeros((size, size)), np.zeros_like(p)
+    A[0, 0], b[0] = 1.0, v_first
+    A[-1, -1], b[-1] = 1.0, v_last
+    for k in range(1, size - 1):
+        A[k, k - 1], A[k, k], A[k, k + 1] = h[k], 2 * (h[k - 1] + h[k]), h[k - 1]
+        b[k] = 3 * (h[k] * d[k - 1] + h[k - 1] * d[k])
+    return np.linalg.solve(A, b)
+
+
+@pytest.fixture
+def positions_only() -> tuple[Trajectory, Sample]:
+    """Four positions (first one later than the start), uneven spacing, tracked sample
+    moving; two joints."""
+    tr = Trajectory.build(
+        1.0,
+        [0.5, 1.3, 1.7, 2.6],
+        [[0.4, -0.2], [1.2, 0.3], [0.9, 0.6], [0.2, -0.5]],
+    )
+    initial = Sample(np.array([0.1, 0.0]), np.array([0.3, -0.4]), np.array([0.5, 1.0]))
+    return tr, initial
+
+
+def test_build_records_which_derivatives_were_given():
+    p = [[0.0], [1.0]]
+    assert not Trajectory.build(0.0, [0.0, 1.0], p).velocities_given
+    assert not Trajectory.build(0.0, [0.0, 1.0], p).accelerations_given
+    tr = Trajectory.build(0.0, [0.0, 1.0], p, velocities=[[0.0], [0.0]])
+    assert tr.velocities_given and not tr.accelerations_given
+
+
+def test_spline_passes_through_the_points_and_ends_at_rest(positions_only):
+    tr, initial = positions_only
+    ref = Reference(tr, initial)
+    for k in range(len(tr.times) - 1):
+        np.testing.assert_allclose(
+            ref.sample(tr.start + tr.times[k]).q, tr.positions[k], rtol=0, atol=1e-12
+        )
+    end = ref.sample(tr.end - EPS_K)
+    np.testing.assert_allclose(end.q, tr.positions[-1], rtol=0, atol=TOL_K)
+    np.testing.assert_allclose(end.dq, [0.0, 0.0], rtol=0, atol=TOL_K)
+    np.testing.assert_allclose(end.ddq, [0.0, 0.0], rtol=0, atol=TOL_K)
+    held = ref.sample(tr.end + 1.0)
+    np.testing.assert_array_equal(held.q, tr.positions[-1])
+    np.testing.assert_array_equal(held.dq, [0.0, 0.0])
+
+
+def test_spline_is_c2_at_every_knot_including_start_and_end(positions_only):
+    tr, initial = positions_only
+    ref = Reference(tr, initial)
+    for t in [tr.start, *(tr.start + tr.times)]:
+        assert_continuous(ref, t)
+    # leaving the tracked sample: q, q̇, q̈ all continuous
+    s = ref.sample(tr.start + EPS_K)
+    np.testing.assert_allclose(s.q, initial.q, rtol=0, atol=TOL_K)
+    np.testing.assert_allclose(s.dq, initial.dq, rtol=0, atol=TOL_K)
+    np.testing.assert_allclose(s.ddq, initial.ddq, rtol=0, atol=TOL_K)
+
+
+def test_spline_does_not_stop_at_interior_points(positions_only):
+    """Changed behaviour: a positions-only trajectory used to stop (q̇_d = 0) at every point."""
+    tr, initial = positions_only
+    ref = Reference(tr, initial)
+    for k in range(len(tr.times) - 1):
+        assert np.all(np.abs(ref.sample(tr.start + tr.times[k]).dq) > 0.05)
+
+
+def test_spline_knot_values_match_an_independent_solution(positions_only):
+    tr, initial = positions_only
+    t, p, v, a = Reference(tr, initial).knots
+    np.testing.assert_array_equal(t, np.concatenate(([0.0], tr.times)))
+    np.testing.assert_array_equal(p, np.vstack((initial.q, tr.positions)))
+    expected = spline_by_slopes(t, p, initial.dq, np.zeros(2))
+    np.testing.assert_allclose(v, expected, rtol=0, atol=1e-12)
+    # interior accelerations: the spline's, equal from both sides of each knot
+    h, d = np.diff(t)[:, None], np.diff(p, axis=0) / np.diff(t)[:, None]
+    from_left = (-6 * d + 2 * v[:-1] + 4 * v[1:]) / h
+    from_right = (6 * d - 4 * v[:-1] - 2 * v[1:]) / h
+    np.testing.assert_allclose(from_left[:-1], from_right[1:], rtol=0, atol=1e-11)
+    np.testing.assert_allclose(a[1:-1], from_right[1:], rtol=0, atol=1e-11)
+    np.testing.assert_array_equal(a[0], initial.ddq)
+    np.testing.assert_array_equal(a[-1], [0.0, 0.0])
+
+
+def test_long_uneven_spline_matches_the_dense_solution():
+    rng = np.random.default_rng(3)
+    times = np.cumsum(rng.uniform(0.05, 2.0, 60))
+    positions = rng.uniform(-2.0, 2.0, (60, 3))
+    initial = Sample(rng.normal(size=3), rng.normal(size=3), rng.normal(size=3))
+    t, p, v, _ = Reference(Trajectory.build(0.0, times, positions), initial).knots
+    expected = spline_by_slopes(t, p, initial.dq, np.zeros(3))
+    np.testing.assert_allclose(v, expected, rtol=0, atol=1e-9)
+
+
+def test_points_on_a_cubic_with_matching_ends_are_reproduced_exactly():
+    """q(t) = c + b (t − T)³ has q̇(T) = q̈(T) = 0: started from its own (q, q̇, q̈) at 0 the
+    reference is that cubic everywhere, to rounding."""
+    T, c, b = 3.0, np.array([0.5, -1.0]), np.array([0.05, -0.02])
+
+    def cubic(t):
+        return c + b * (t - T) ** 3, 3 * b * (t - T) ** 2, 6 * b * (t - T)
+
+    knots = [0.7, 1.1, 2.0, T]
+    q0, dq0, ddq0 = cubic(0.0)
+    ref = Reference(
+        Trajectory.build(2.0, knots, [cubic(t)[0] for t in knots]), Sample(q0, dq0, ddq0)
+    )
+    for s in np.linspace(0.0, T, 301):
+        got, (q, dq, ddq) = ref.sample(2.0 + s), cubic(s)
+        np.testing.assert_allclose(got.q, q, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got.dq, dq, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got.ddq, ddq, rtol=0, atol=1e-11)
+
+
+def test_interior_segments_are_the_cubic_spline_and_end_segments_stay_close():
+    """Points on q(t) = t³ − 4.5 t² + 6 t, q̇ = 3(t − 1)(t − 2): with the tracked q̇ = q̇(0) = 6
+    and q̇(2) = 0 the clamped spline on [0, 2] is the polynomial itself. Only the end
+    accelerations differ (tracked q̈ = 0 instead of −9 at the start, 0 instead of 3 at the
+    end), so the end segments deviate by at most 0.0173 |Δq̈| h² (module docstring)."""
+
+    def cubic(t):
+        return t**3 - 4.5 * t**2 + 6 * t, 3 * t**2 - 9 * t + 6, 6 * t - 9
+
+    knots = np.array([0.0, 0.5, 1.0, 1.5, 2.0])
+    tr = Trajectory.build(0.0, knots, [[cubic(t)[0]] for t in knots])
+    ref = Reference(tr, Sample(np.zeros(1), np.array([6.0]), np.zeros(1)))
+    for s in np.linspace(0.5, 1.5, 101):  # interior segments: exact
+        got, (q, dq, ddq) = ref.sample(s), cubic(s)
+        np.testing.assert_allclose([got.q[0], got.dq[0], got.ddq[0]], [q, dq, ddq], atol=1e-12)
+    for s in np.concatenate((np.linspace(0.0, 0.5, 51), np.linspace(1.5, 2.0, 51))):
+        dev = abs(ref.sample(s).q[0] - cubic(s)[0])
+        assert dev <= 0.01728 * 9.0 * 0.25 + 1e-12  # |Δq̈| ≤ 9, h = 0.5
+    for t in knots:
+        assert_continuous(ref, t)
+
+
+def test_two_positions_from_a_moving_sample_leave_it_smoothly():
+    """Changed behaviour: with the first point at 0 and no velocities, the start velocity and
+    acceleration are the tracked ones (they were 0)."""
+    initial = Sample(np.array([1.0]), np.array([0.4]), np.array([-0.3]))
+    ref = Reference(Trajectory.build(5.0, [0.0, 2.0], [[1.0], [3.0]]), initial)
+    s = ref.sample(5.0)
+    np.testing.assert_allclose([s.q[0], s.dq[0], s.ddq[0]], [1.0, 0.4, -0.3], atol=1e-12)
+    assert_continuous(ref, 5.0)
+    assert_continuous(ref, 7.0)
+
+
+def test_single_points_keep_their_behaviour():
+    moving = Sample(np.array([0.2, 0.1]), np.array([1.0, -1.0]), np.array([2.0, 0.5]))
+    step = Reference(Trajectory.build(3.0, [0.0], [[0.5, -0.3]]), moving)
+    for t in (3.0, 3.0 + 1e-9, 4.0):
+        s = step.sample(t)
+        np.testing.assert_array_equal(s.q, [0.5, -0.3])
+        np.testing.assert_array_equal(s.dq, [0.0, 0.0])
+        np.testing.assert_array_equal(s.ddq, [0.0, 0.0])
+    assert step.sample(3.0 - 1e-9) is moving
+    # one point later than the start: quintic from the tracked sample to rest
+    move = Reference(Trajectory.build(3.0, [2.0], [[0.5, -0.3]]), moving)
+    _, _, v, a = move.knots
+    np.testing.assert_array_equal(v, [moving.dq, [0.0, 0.0]])
+    np.testing.assert_array_equal(a, [moving.ddq, [0.0, 0.0]])
+
+
+def test_given_velocities_are_kept_and_accelerations_make_it_c2(positions_only):
+    tr0, initial = positions_only
+    velocities = [[0.5, 0.0], [-0.2, 0.4], [-1.0, 0.1], [0.0, 0.0]]
+    tr = Trajectory.build(tr0.start, tr0.times, tr0.positions, velocities=velocities)
+    ref = Reference(tr, initial)
+    for k, t in enumerate(tr.start + tr.times[:-1]):
+        np.testing.assert_allclose(ref.sample(t).dq, velocities[k], rtol=0, atol=1e-12)
+    for t in [tr.start, *(tr.start + tr.times)]:
+        assert_continuous(ref, t)
+    t, p, v, a = ref.knots
+    # interior: mean of the one-sided cubic accelerations (golden values from the formula)
+    h = np.diff(t)[:, None]
+    d = np.diff(p, axis=0) / h
+    left = (-6 * d[:-1] + 2 * v[:-2] + 4 * v[1:-1]) / h[:-1]
+    right = (6 * d[1:] - 4 * v[1:-1] - 2 * v[2:]) / h[1:]
+    np.testing.assert_allclose(a[1:-1], 0.5 * (left + right), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(a[0], initial.ddq)
+    np.testing.assert_array_equal(a[-1], [0.0, 0.0])
+
+
+def test_given_spline_velocities_reproduce_the_spline(positions_only):
+    """Velocities taken from the positions-only spline give the same reference."""
+    tr, initial = positions_only
+    spline = Reference(tr, initial)
+    _, _, v, _ = spline.knots
+    with_v = Reference(Trajectory.build(tr.start, tr.times, tr.positions, v[1:]), initial)
+    for s in np.linspace(tr.start - 0.1, tr.end + 0.1, 157):
+        a, b = spline.sample(s), with_v.sample(s)
+        np.testing.assert_allclose(b.q, a.q, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(b.dq, a.dq, rtol=0, atol=1e-11)
+        np.testing.assert_allclose(b.ddq, a.ddq, rtol=0, atol=1e-10)
+
+
+def test_accelerations_without_velocities_take_zero_velocities():
+    tr = Trajectory.build(0.0, [0.0, 1.0], [[0.0], [1.0]], accelerations=[[0.5], [0.0]])
+    _, _, v, a = Reference(tr, rest(1)).knots
+    np.testing.assert_array_equal(v, [[0.0], [0.0]])
+    np.testing.assert_array_equal(a, [[0.5], [0.0]])
+
+
+def test_spline_derivatives_match_finite_differences(positions_only):
+    tr, initial = positions_only
+    ref = Reference(tr, initial)
+    knots = tr.start + np.concatenate(([0.0], tr.times))
+    times = np.linspace(tr.start, tr.end, 401)
+    times = times[np.min(np.abs(times[:, None] - knots[None, :]), axis=1) > 1e-3]
+    for t in times:
+        plus, minus, mid = ref.sample(t + H), ref.sample(t - H), ref.sample(t)
+        np.testing.assert_allclose((plus.q - minus.q) / (2 * H), mid.dq, rtol=0, atol=1e-6)
+        np.testing.assert_allclose((plus.dq - minus.dq) / (2 * H), mid.ddq, rtol=0, atol=1e-6)
