@@ -66,6 +66,8 @@ setup(
         "console_scripts": [
             "sim_bridge = sim_bridge.node:main",
             "pd_gravity_controller = joint_space_control.nodes.pd_gravity_controller:main",
+            "inverse_dynamics_controller = "
+            "joint_space_control.nodes.inverse_dynamics_controller:main",
             "recorder = joint_space_control.nodes.recorder:main",
             "jsc = joint_space_control.cli.main:main",
         ],

@@ -64,9 +64,13 @@ class ClosedLoop:
         joints: Sequence[str],
         positions: Sequence[Sequence[float]],
         times: Sequence[float] = (0.0,),
+        velocities: Sequence[Sequence[float]] | None = None,
+        accelerations: Sequence[Sequence[float]] | None = None,
     ) -> None:
         """Send the reference (acknowledged) and only then let the simulator run."""
-        self.probe.send_reference(joints, positions, times)
+        self.probe.send_reference(
+            joints, positions, times, velocities=velocities, accelerations=accelerations
+        )
         response = self.probe.call_trigger("/sim_bridge/resume")
         if not response.success:
             raise RuntimeError(f"sim_bridge did not resume: {response.message}")

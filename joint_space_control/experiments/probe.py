@@ -150,18 +150,22 @@ class LoopProbe:
         positions: Sequence[Sequence[float]],
         times: Sequence[float] = (0.0,),
         start_ns: int = 0,
+        velocities: Sequence[Sequence[float]] | None = None,
+        accelerations: Sequence[Sequence[float]] | None = None,
     ) -> None:
         """Publish a trajectory and wait until every subscriber has acknowledged it."""
         msg = JointTrajectory(joint_names=list(joints))
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(start_ns, 1_000_000_000)
-        for t, pos in zip(times, positions, strict=True):
+        for k, (t, pos) in enumerate(zip(times, positions, strict=True)):
             sec, nsec = divmod(round(t * 1e9), 1_000_000_000)
-            msg.points.append(
-                JointTrajectoryPoint(
-                    positions=[float(p) for p in pos],
-                    time_from_start=Duration(sec=sec, nanosec=nsec),
-                )
+            point = JointTrajectoryPoint(
+                positions=[float(p) for p in pos], time_from_start=Duration(sec=sec, nanosec=nsec)
             )
+            if velocities is not None:
+                point.velocities = [float(v) for v in velocities[k]]
+            if accelerations is not None:
+                point.accelerations = [float(a) for a in accelerations[k]]
+            msg.points.append(point)
         self._ref_pub.publish(msg)
         if not self._ref_pub.wait_for_all_acked(rclpy.duration.Duration(seconds=5.0)):
             raise TimeoutError("reference not acknowledged by every subscriber")

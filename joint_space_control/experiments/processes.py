@@ -20,6 +20,7 @@ import yaml
 EXECUTABLES = {
     "sim_bridge": "sim_bridge.node",
     "pd_gravity_controller": "joint_space_control.nodes.pd_gravity_controller",
+    "inverse_dynamics_controller": "joint_space_control.nodes.inverse_dynamics_controller",
     "recorder": "joint_space_control.nodes.recorder",
 }
 

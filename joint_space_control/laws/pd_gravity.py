@@ -11,12 +11,12 @@ A constant torque u (the iterative gravity estimate u_i) can be added to any mod
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
 
 from joint_space_control.laws.gains import PDGains
+from joint_space_control.laws.split import TorqueSplit
 
 
 class GravityCompensation(StrEnum):
@@ -31,20 +31,6 @@ class GravityCompensation(StrEnum):
         except ValueError:
             names = ", ".join(m.value for m in cls)
             raise ValueError(f"gravity_compensation '{value}' is not one of: {names}") from None
-
-
-@dataclass(frozen=True)
-class TorqueSplit:
-    """The parts of one command [N·m]: feedback (PD + integral), model (inertial/Coriolis
-    feedforward), gravity (ĝ and any constant estimate), and their sum before clamping."""
-
-    feedback: np.ndarray
-    model: np.ndarray
-    gravity: np.ndarray
-
-    @property
-    def total(self) -> np.ndarray:
-        return self.feedback + self.model + self.gravity
 
 
 def pd_gravity_torque(

@@ -22,7 +22,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
-from joint_space_control.laws.pd_gravity import TorqueSplit
+from joint_space_control.laws.split import TorqueSplit
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.nodes import parameters as params
@@ -81,7 +81,43 @@ COMMON_PARAMETERS = (
         "Derivative gain K_D [N·m·s/rad], one value or one per joint, >= 0",
         dynamic=True,
     ),
+    # The controller's own model (B̂, Ĉ, F̂, ĝ) can differ from the plant on purpose.
+    params.ParamSpec(
+        "model_mass_scale",
+        1.0,
+        "Controller model: factor on the mass and inertia of the link each joint moves, "
+        "one value or one per joint, > 0",
+        dynamic=True,
+    ),
+    params.ParamSpec(
+        "model_payload_mass",
+        0.0,
+        "Controller model: point mass [kg] at the last link's centre of mass, >= 0",
+    ),
+    params.ParamSpec(
+        "model_friction",
+        0.0,
+        "Controller model: viscous friction F̂ [N·m·s/rad], one value or one per joint, >= 0",
+        dynamic=True,
+    ),
+    params.ParamSpec("model_gravity", True, "Controller model: false models no gravity (ĝ ≡ 0)"),
 )
+MODEL_PARAMETERS = ("model_mass_scale", "model_payload_mass", "model_friction", "model_gravity")
+
+
+def model_perturbation(values: dict[str, Any]) -> ModelPerturbation:
+    """The controller model's deliberate differences from the URDF, from parameter values."""
+    payload = values["model_payload_mass"]
+    if isinstance(payload, bool) or not isinstance(payload, int | float):
+        raise ValueError(f"'model_payload_mass' must be a number, got {payload!r}")
+    if not isinstance(values["model_gravity"], bool):
+        raise ValueError(f"'model_gravity' must be true or false, got {values['model_gravity']!r}")
+    return ModelPerturbation(
+        friction=tuple(params.numbers(values, "model_friction")),
+        mass_scale=tuple(params.numbers(values, "model_mass_scale")),
+        payload_mass=float(payload),
+        gravity=values["model_gravity"],
+    )
 
 
 class JointController(Node):
@@ -100,16 +136,15 @@ class JointController(Node):
         spec = resolve_robot(
             values["robot"] if not values["urdf_path"] else "", values["urdf_path"]
         )
-        self.model = RobotModel(
-            spec, params.names(values, "joints") or None, self.model_perturbation(values)
-        )
+        self._perturbation = model_perturbation(values)
+        self.model = RobotModel(spec, params.names(values, "joints") or None, self._perturbation)
         self.joints = self.model.joint_names
         self.n = len(self.joints)
         self.effort_limits = self.model.effort_limits
         self._robot_name = spec.name
         self._rate = rate = params.positive(values, "rate")
         self.trigger = params.choice(values, "trigger", TRIGGERS)
-        self.config = self.build_config(values)
+        self.config = self.build_config(values, self.model)
         self._state_timeout = params.positive(values, "state_timeout")
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -141,12 +176,9 @@ class JointController(Node):
         )
 
     # -- to be provided by the concrete controller ------------------------------------
-    def model_perturbation(self, values: dict[str, Any]) -> ModelPerturbation:
-        """The controller model's deliberate differences from the URDF (none by default)."""
-        return ModelPerturbation()
-
-    def build_config(self, values: dict[str, Any]) -> Any:
-        """An immutable configuration with at least ``gains`` (:class:`PDGains`)."""
+    def build_config(self, values: dict[str, Any], model: RobotModel) -> Any:
+        """An immutable configuration with at least ``gains`` (:class:`PDGains`) and the
+        controller ``model`` it computes with."""
         raise NotImplementedError
 
     def law_name(self, config: Any) -> str:
@@ -168,18 +200,27 @@ class JointController(Node):
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         values = params.with_changes(self, self._specs, changes)
         try:
-            config = self.build_config(values)
+            model = self._model_for(values)
+            config = self.build_config(values, model)
             timeout = params.positive(values, "state_timeout")
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
         self.config = config  # swapped whole; a tick reads it once
+        self.model, self._perturbation = model, model_perturbation(values)
         self._state_timeout = timeout
         self._publish_config(values)
         self.get_logger().info(
             "parameters updated: " + ", ".join(f"{p.name}={p.value}" for p in changes)
         )
         return SetParametersResult(successful=True)
+
+    def _model_for(self, values: dict[str, Any]) -> RobotModel:
+        """The current model, or a new one if the model parameters changed."""
+        perturbation = model_perturbation(values)
+        if perturbation == self._perturbation:
+            return self.model
+        return RobotModel(self.model.spec, self.joints, perturbation)
 
     def _publish_config(self, values: dict[str, Any]) -> None:
         lower, upper = self.model.position_limits

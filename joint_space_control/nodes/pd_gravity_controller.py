@@ -22,6 +22,7 @@ from joint_space_control.laws.pd_gravity import (
     integrate_error,
     pid_torque_split,
 )
+from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.controller_base import JointController
 from joint_space_control.nodes.node_main import run_node
@@ -30,6 +31,7 @@ from joint_space_control.trajectories.reference import Sample
 
 @dataclass(frozen=True)
 class PDConfig:
+    model: RobotModel
     gains: PDGains
     gravity: GravityCompensation
     gravity_estimate: np.ndarray
@@ -62,12 +64,12 @@ class PDGravityController(JointController):
 
     def __init__(self, **kwargs: Any) -> None:
         self._integral: np.ndarray | None = None
-        self._g_des_key: bytes | None = None
+        self._g_des_key: tuple[RobotModel, bytes] | None = None
         self._g_des = None
         super().__init__("pd_gravity_controller", **kwargs)
         self._integral = np.zeros(self.n)
 
-    def build_config(self, values: dict[str, Any]) -> PDConfig:
+    def build_config(self, values: dict[str, Any], model: RobotModel) -> PDConfig:
         n = self.n
         gains = PDGains.build(
             n,
@@ -77,24 +79,25 @@ class PDGravityController(JointController):
         )
         mode = GravityCompensation.parse(values["gravity_compensation"])
         estimate = per_joint(params.numbers(values, "gravity_estimate"), n, "gravity_estimate")
-        return PDConfig(gains, mode, estimate)
+        return PDConfig(model, gains, mode, estimate)
 
     def law_name(self, config: PDConfig) -> str:
         return "pd_gravity"  # the variant: gravity_compensation, ki in "parameters"
 
-    def _gravity(self, q: np.ndarray, q_des: np.ndarray, mode: GravityCompensation) -> np.ndarray:
+    def _gravity(self, q: np.ndarray, q_des: np.ndarray, config: PDConfig) -> np.ndarray:
+        mode = config.gravity
         if mode is GravityCompensation.FULL:
-            return self.model.gravity(q)
+            return config.model.gravity(q)
         if mode is GravityCompensation.DESIRED:
-            key = q_des.tobytes()
+            key = (config.model, q_des.tobytes())  # holds the model: no id reuse
             if key != self._g_des_key:  # g(q_d) is constant for a set-point: compute once
-                self._g_des, self._g_des_key = self.model.gravity(q_des), key
+                self._g_des, self._g_des_key = config.model.gravity(q_des), key
             return self._g_des
         return np.zeros(self.n)
 
     def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
         config = self.config
-        gravity = self._gravity(q, ref.q, config.gravity) + config.gravity_estimate
+        gravity = self._gravity(q, ref.q, config) + config.gravity_estimate
         return pid_torque_split(q, dq, ref.q, self._integral, config.gains, gravity)
 
     def after_command(

@@ -48,12 +48,14 @@ JOINTS = {
 
 @pytest.fixture
 def make_loop(tmp_path: Path) -> Iterator[Any]:
-    """Factory of lockstep loops (planar_2dof or iiwa, PD controller); all closed at the end."""
+    """Factory of lockstep loops (planar_2dof or iiwa; PD controller by default, with the
+    robot's GAINS unless overridden); all closed at the end."""
     loops: list[ClosedLoop] = []
 
     def make(
         robot: str,
         controller_params: dict[str, Any] | None = None,
+        controller: str = "pd_gravity_controller",
         sim_params: dict[str, Any] | None = None,
         record: Path | None = None,
     ) -> ClosedLoop:
@@ -61,6 +63,7 @@ def make_loop(tmp_path: Path) -> Iterator[Any]:
             tmp_path / f"run{len(loops)}",
             next_domain_id(),
             robot,
+            controller,
             controller_params={**GAINS[robot], **(controller_params or {})},
             sim_params=sim_params,
             record=record,

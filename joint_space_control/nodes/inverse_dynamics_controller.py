@@ -1,0 +1,115 @@
+"""``inverse_dynamics_controller``: inverse dynamics and feedforward + PD (THEORY.md §3).
+
+``law`` picks (see :mod:`joint_space_control.laws.inverse_dynamics`):
+
+- ``inverse_dynamics``         τ = B̂(q)[q̈_d + K_D ė + K_P e] + n̂(q, q̇)            (eq. 15)
+- ``feedforward_pd``           τ = B̂(q)q̈_d + Ĉ(q, q̇)q̇_d + F̂q̇_d + ĝ(q) + K_D ė + K_P e (eq. 17)
+- ``precomputed_feedforward``  the same feedforward evaluated on the reference, + ĝ(q) + PD
+
+Gains are ``kp``/``kd``, or per-joint ``omega_n``/``zeta`` (K_P = ω_n², K_D = 2ζω_n) when
+``omega_n`` > 0. The hatted model is the controller's own Pinocchio model of the URDF with
+the ``model_*`` perturbations. Everything can be changed while the node runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from joint_space_control.arrays import per_joint
+from joint_space_control.laws.gains import PDGains
+from joint_space_control.laws.inverse_dynamics import (
+    LAWS,
+    ModelLaw,
+    precomputed_feedforward,
+    reference_feedforward,
+)
+from joint_space_control.laws.split import TorqueSplit
+from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.nodes import parameters as params
+from joint_space_control.nodes.controller_base import JointController
+from joint_space_control.nodes.node_main import run_node
+from joint_space_control.trajectories.reference import Sample
+
+
+@dataclass(frozen=True)
+class IDConfig:
+    model: RobotModel
+    gains: PDGains
+    law: ModelLaw
+
+
+def gains_from_parameters(values: dict[str, Any], n: int) -> PDGains:
+    """K_P, K_D from ``omega_n``/``zeta`` when any ω_n > 0 (all must then be > 0), else from
+    ``kp``/``kd``."""
+    omega = per_joint(params.numbers(values, "omega_n"), n, "omega_n")
+    if not np.any(omega > 0):
+        if np.any(omega < 0):
+            raise ValueError(f"'omega_n' must be > 0, got {omega.tolist()}")
+        return PDGains.build(n, params.numbers(values, "kp"), params.numbers(values, "kd"))
+    zeta = per_joint(params.numbers(values, "zeta"), n, "zeta")
+    if np.any(omega <= 0):
+        raise ValueError(f"'omega_n' must be > 0 on every joint, got {omega.tolist()}")
+    if np.any(zeta < 0):
+        raise ValueError(f"'zeta' must be >= 0, got {zeta.tolist()}")
+    return PDGains.build(n, omega**2, 2.0 * zeta * omega)
+
+
+class InverseDynamicsController(JointController):
+    EXECUTABLE = "inverse_dynamics_controller"
+    LAW_PARAMETERS = (
+        params.ParamSpec(
+            "law",
+            "inverse_dynamics",
+            "inverse_dynamics (eq. 15) | feedforward_pd (eq. 17) | precomputed_feedforward",
+        ),
+        params.ParamSpec(
+            "omega_n",
+            0.0,
+            "Natural frequency ω_n [rad/s], one or per joint; > 0 sets K_P = ω_n², "
+            "K_D = 2ζω_n instead of kp/kd; 0: use kp/kd",
+            dynamic=True,
+        ),
+        params.ParamSpec(
+            "zeta", 1.0, "Damping ratio ζ, one or per joint, >= 0 (with omega_n)", dynamic=True
+        ),
+    )
+
+    def __init__(self, **kwargs: Any) -> None:
+        self._ff_key: tuple[RobotModel, bytes] | None = None
+        self._ff: np.ndarray | None = None
+        super().__init__(self.EXECUTABLE, **kwargs)
+
+    def build_config(self, values: dict[str, Any], model: RobotModel) -> IDConfig:
+        return IDConfig(
+            model, gains_from_parameters(values, self.n), ModelLaw.parse(values["law"])
+        )
+
+    def law_name(self, config: IDConfig) -> str:
+        return config.law.value
+
+    def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
+        config = self.config
+        if config.law is ModelLaw.PRECOMPUTED_FEEDFORWARD:
+            return precomputed_feedforward(
+                config.model, q, dq, ref, config.gains, self._feedforward(config.model, ref)
+            )
+        return LAWS[config.law](config.model, q, dq, ref, config.gains)
+
+    def _feedforward(self, model: RobotModel, ref: Sample) -> np.ndarray:
+        """The reference's feedforward, computed once per distinct reference sample (a
+        set-point or a hold needs it once)."""
+        key = (model, np.concatenate((ref.q, ref.dq, ref.ddq)).tobytes())  # holds the model
+        if key != self._ff_key:
+            self._ff, self._ff_key = reference_feedforward(model, ref), key
+        return self._ff
+
+
+def main(args: list[str] | None = None) -> None:
+    run_node(InverseDynamicsController, args)
+
+
+if __name__ == "__main__":
+    main()
