@@ -70,15 +70,17 @@ def config_message(description: dict[str, Any]) -> String:
     configuration"); non-finite numbers (absent limits) become ``null``."""
 
     def plain(value: Any) -> Any:
-        if isinstance(value, np.ndarray):
+        if hasattr(value, "tolist"):  # numpy arrays and scalars, array.array (parameters)
             value = value.tolist()
         if isinstance(value, dict):
-            return {k: plain(v) for k, v in value.items()}
+            return {str(k): plain(v) for k, v in value.items()}
         if isinstance(value, list | tuple):
             return [plain(v) for v in value]
         if isinstance(value, float):
             return _json_number(value)
-        return value
+        if value is None or isinstance(value, bool | int | str):
+            return value
+        return str(value)
 
     return String(data=json.dumps(plain(description), allow_nan=False))
 

@@ -13,6 +13,8 @@ from joint_space_control.analysis.metrics import (
     torque_demand,
     tracking_error,
 )
+from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
+from joint_space_control.model.robots import resolve_robot
 from joint_space_control.recording.bag_writer import jazzy_typestore
 
 from .conftest import JOINTS
@@ -175,3 +177,45 @@ def test_large_omega_n_saturates_and_the_state_shows_it(make_loop, tmp_path):
             assert np.any(demand["saturated_fraction"] > 0.0)
     # K_P = ω_n²: the initial torque B(q0) K_P Δ grows by (60/8)² ≈ 56 before clamping
     assert np.all(peaks[60.0] > 20 * (peaks[8.0] - 700.0)), peaks
+
+
+def test_runtime_changes_of_law_gains_and_model_are_validated(make_loop):
+    robot = "planar_2dof"
+    case = CASES[robot]
+    q0 = np.array(case["q0"])
+    target = q0 + case["step"]
+    loop = id_loop(make_loop, robot)
+    loop.start(JOINTS[robot], [target])
+    loop.run_until(0.5)
+    bad_updates = [
+        {"law": "computed_torque"},
+        {"omega_n": -3.0},
+        {"omega_n": [10.0, 10.0, 10.0]},
+        {"zeta": -0.5},
+        {"model_mass_scale": 0.0},
+        {"model_payload_mass": -1.0},
+        {"model_friction": [float("nan"), 0.0]},
+        {"model_gravity": "yes"},
+    ]
+    for update in bad_updates:
+        (result,) = loop.probe.set_parameters(loop.controller, update)
+        assert not result.successful, f"{update} was accepted"
+        assert result.reason, f"{update} rejected without a reason"
+    law, omega = loop.probe.get_parameters(loop.controller, ["law", "omega_n"])
+    assert law == "inverse_dynamics" and list(omega) == case["omega_n"]
+
+    good = {"law": "feedforward_pd", "omega_n": 0.0, "kp": 4000.0, "kd": 800.0}
+    assert all(r.successful for r in loop.probe.set_parameters(loop.controller, good))
+    (mass,) = loop.probe.set_parameters(loop.controller, {"model_mass_scale": [1.0, 1.1]})
+    assert mass.successful, mass.reason
+    loop.run_until(3.0)
+    q_e, _ = loop.final_state()
+    # Feedforward + PD with a constant reference is PD + ĝ(q); with link 2 modelled 10 %
+    # too heavy it settles where K_P (q_d − q_e) = g(q_e) − ĝ(q_e).
+    spec = resolve_robot(robot)
+    g, g_hat = (
+        RobotModel(spec, perturbation=ModelPerturbation(mass_scale=s)).gravity(q_e)
+        for s in ([1.0, 1.0], [1.0, 1.1])
+    )
+    assert np.max(np.abs(target - q_e)) > 1e-3  # a visible offset ...
+    np.testing.assert_allclose(4000.0 * (target - q_e), g - g_hat, rtol=0.01)  # as predicted

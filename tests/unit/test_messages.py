@@ -359,3 +359,33 @@ def test_nonnegative_number_accepts(value):
 def test_nonnegative_number_rejects(value, match):
     with pytest.raises(ValueError, match=match):
         nonnegative_number({"f": value}, "f")
+
+
+def test_config_message_is_strict_json_of_parameter_values():
+    import array
+    import json
+
+    from joint_space_control.nodes.messages import config_message
+
+    msg = config_message(
+        {
+            "kp": array.array("d", [1.0, 2.0]),  # what rclpy hands out for a double array
+            "limits": np.array([2000.0, np.inf]),
+            "bounds": [[-np.inf, 1.5]],
+            "flag": True,
+            "names": ("a", "b"),
+            "count": np.int64(3),
+            "nested": {"x": np.float64(0.5), "raw": b"\x01"},
+        }
+    )
+    decoded = json.loads(msg.data)
+    assert decoded == {
+        "kp": [1.0, 2.0],
+        "limits": [2000.0, None],
+        "bounds": [[None, 1.5]],
+        "flag": True,
+        "names": ["a", "b"],
+        "count": 3,
+        "nested": {"x": 0.5, "raw": "b'\\x01'"},
+    }
+    assert "NaN" not in msg.data and "Infinity" not in msg.data
