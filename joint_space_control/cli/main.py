@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from joint_space_control.cli import demo
+from joint_space_control.cli import analyze, demo
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -26,7 +26,18 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="ROS domain for the run (default: one derived from the pid)",
     )
+    p_analyze = sub.add_parser(
+        "analyze",
+        help="analyse a recorded rosbag2 bag: metrics.json, figures and report.md",
+    )
+    p_analyze.add_argument("bag", type=Path, help="rosbag2 directory (metadata.yaml + .mcap/.db3)")
+    p_analyze.add_argument(
+        "--out", type=Path, default=None, help="output directory (default: <BAG>_report)"
+    )
+    p_analyze.add_argument("--quiet", action="store_true", help="no progress display on stderr")
     args = parser.parse_args(argv)
+    if args.command == "analyze":
+        return analyze.run(args.bag, args.out, args.quiet)
     if args.command == "demo":
         domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
         return demo.run(args.out, args.duration, domain)

@@ -1,0 +1,109 @@
+"""``jsc analyze BAG``: a recorded bag → metrics.json, figures and report.md (wiring only)."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import TextIO
+
+from joint_space_control.analysis.bag import BagError
+from joint_space_control.analysis.figures import controller_figures, file_prefix
+from joint_space_control.analysis.report import fmt, write_metrics, write_report
+from joint_space_control.analysis.run_metrics import analyze_bag
+
+PROGRESS_MIN_MESSAGES = 20_000
+"""Bags with fewer messages to read show no progress."""
+
+
+def default_out(bag: Path) -> Path:
+    """``<BAG>_report``, next to the bag directory."""
+    return Path(str(bag).rstrip("/") + "_report")
+
+
+class ProgressBar:
+    """``progress(done, total)`` on a stream: one line redrawn in place on a terminal,
+    otherwise a line at every quarter."""
+
+    def __init__(self, stream: TextIO, width: int = 30) -> None:
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.width = width
+        self._next_quarter = 1
+        self._drawn = False
+
+    def __call__(self, done: int, total: int) -> None:
+        if total < PROGRESS_MIN_MESSAGES:
+            return
+        fraction = min(done / total, 1.0) if total else 1.0
+        if self.tty:
+            filled = round(self.width * fraction)
+            bar = "#" * filled + "." * (self.width - filled)
+            self.stream.write(f"\rreading [{bar}] {100 * fraction:3.0f} % {done}/{total} messages")
+            self._drawn = True
+        elif fraction * 4 >= self._next_quarter:
+            self.stream.write(f"reading: {100 * fraction:.0f} % ({done}/{total} messages)\n")
+            self._next_quarter = int(fraction * 4) + 1
+        self.stream.flush()
+
+    def finish(self) -> None:
+        if self._drawn:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._drawn = False
+
+
+def run(bag: Path, out: Path | None = None, quiet: bool = False) -> int:
+    """Analyse ``bag`` into ``out`` (default :func:`default_out`); exit code 0, or 2 when the
+    bag cannot be analysed (one line on stderr), 1 when the results cannot be written."""
+    out = default_out(bag) if out is None else out
+    started = time.perf_counter()
+    progress = None if quiet else ProgressBar(sys.stderr)
+    try:
+        analysis = analyze_bag(bag, progress)
+    except BagError as err:
+        if progress is not None:
+            progress.finish()
+        print(f"jsc analyze: error: {err}", file=sys.stderr)
+        return 2
+    if progress is not None:
+        progress.finish()
+    metrics = analysis.metrics
+    several = len(analysis.controllers) > 1
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        figures = {
+            c.metrics["node"]: controller_figures(
+                c.state, c.metrics, out, file_prefix(c.metrics["node"]) if several else ""
+            )
+            for c in analysis.controllers
+        }
+        write_metrics(metrics, out / "metrics.json")
+        report = write_report(metrics, figures, out)
+    except OSError as err:
+        print(f"jsc analyze: error: cannot write the results to {out}: {err}", file=sys.stderr)
+        return 1
+    _summary(metrics, report, time.perf_counter() - started)
+    return 0
+
+
+def _summary(metrics: dict, report: Path, elapsed: float) -> None:
+    print(
+        f"jsc analyze: {metrics['bag']}: {fmt(metrics['duration_s'])} s, "
+        f"{metrics['message_count']} messages, analysed in {elapsed:.1f} s"
+    )
+    for node, c in metrics["controllers"].items():
+        print(f"{node} ({c.get('robot') or 'robot ?'}, law {c.get('law') or '?'}):")
+        errors = ", ".join(f"{j} {fmt(e, 3)}" for j, e in c["final_error"].items())
+        print(f"  final error q_d - q [rad]: {errors}")
+        for step in c["steps"]:
+            moved = {j: m for j, m in step["joints"].items() if m["moving"]}
+            parts = [
+                f"{j} overshoot {fmt(m.get('overshoot_percent'), 3)} %, "
+                f"settling 2 % {fmt(m.get('settling_time_2'), 3)} s"
+                for j, m in moved.items()
+            ]
+            print(f"  step at {fmt(step['t_start'])} s: " + "; ".join(parts))
+    for warning in metrics["warnings"]:
+        print(f"warning: {warning}")
+    print(f"report: {report} (with metrics.json and the figures)")
