@@ -50,10 +50,6 @@ def _table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> list[str]:
     return [line(header), "|" + "---|" * len(header), *(line(row) for row in rows), ""]
 
 
-def _per_joint(section: Mapping | None, joint: str):
-    return None if section is None else section.get(joint)
-
-
 def _configuration(c: dict) -> list[str]:
     config = c.get("config")
     lines = [
@@ -170,15 +166,17 @@ def _tracking(c: dict) -> list[str]:
     return lines + _table(head, rows)
 
 
+SATURATION_SOURCES = {
+    "effort_limits": "at limit",
+    "tau_unclamped": "clamped",
+    None: "—",
+}
+
+
 def _torque(c: dict) -> list[str]:
     td = c["torque_demand"]
-    source = {
-        "effort_limits": "|τ| at the configuration's effort limit",
-        "tau_unclamped": "τ clamped (τ_unclamped ≠ τ); no configuration, limits unknown",
-        None: "unknown (no limits, no tau_unclamped row)",
-    }[td.get("saturation_source")]
     head = ["joint", "peak |τ| [N·m]", "peak |τ̇| [N·m/s]", "effort limit [N·m]"]
-    head += ["saturated [% of time]"]
+    head += ["saturated [% of time]", "saturated means"]
     rows = []
     for j in c["joints"]:
         sat = td["saturated_fraction"][j]
@@ -187,11 +185,17 @@ def _torque(c: dict) -> list[str]:
                 j,
                 fmt(td["peak_abs"][j]),
                 fmt(td["peak_rate"][j]),
-                fmt(_per_joint(td.get("effort_limits"), j)),
+                fmt(td["effort_limits"][j]),
                 fmt(None if sat is None else 100.0 * sat),
+                SATURATION_SOURCES[td["saturation_source"][j]],
             ]
         )
-    return ["### Torque demand", "", f"Saturated means {source}.", ""] + _table(head, rows)
+    note = (
+        "Saturated: *at limit* = |τ| at the configuration's effort limit; *clamped* = the "
+        "controller clamped its command (τ_unclamped ≠ τ), used where no limit is known. "
+        "Each sample counts until the next one."
+    )
+    return ["### Torque demand", "", note, ""] + _table(head, rows)
 
 
 def _periods(c: dict) -> list[str]:

@@ -138,7 +138,7 @@ def last_run(
     - when the stamps go backwards (the simulation was reset) only the samples after the
       last reset are kept, and a warning says so;
     - of samples sharing a stamp (a lockstep state sent again is answered again) the last
-      one is kept.
+      one is kept; a warning says when they differ in q (two runs, not a repeated answer).
     """
     warnings = [] if warnings is None else warnings
     finite = np.isfinite(state.stamp)
@@ -160,6 +160,18 @@ def last_run(
     last_of_stamp = np.append(np.diff(state.stamp) > 0.0, True)
     duplicates = int(np.count_nonzero(~last_of_stamp))
     if duplicates:
+        # an answer repeated for the same joint state carries the same q; a different q at
+        # the same stamp means two simulation runs whose messages interleave in log time
+        # (a recorder on simulation time across a reset): they cannot be told apart here
+        repeated = np.flatnonzero(~last_of_stamp)
+        q = state.rows["q"]
+        conflicts = int(np.count_nonzero(np.any(q[repeated] != q[repeated + 1], axis=1)))
+        if conflicts:
+            warnings.append(
+                f"{conflicts} stamps carry different joint positions q: probably several "
+                "simulation runs interleaved in log time (recorder on simulation time across "
+                "a reset); the analysis mixes them, record each run in its own bag"
+            )
         state = state.take(last_of_stamp)
     if state.skipped:
         warnings.append(f"{state.skipped} state messages with a different layout were ignored")
@@ -193,7 +205,8 @@ def config_values(
     """Per-joint values ``config[key]`` in the order of ``joints`` (None if not available).
 
     The configuration lists values in the order of its own ``joints`` (one value applies to
-    every joint); joints it does not list make the result None, with a warning.
+    every joint; ``null`` gives NaN); joints it does not list make the result None, with a
+    warning.
     """
     if config is None or config.get(key) is None:
         return None
@@ -410,28 +423,33 @@ def _clamped_fraction(t: np.ndarray, tau: np.ndarray, tau_unclamped: np.ndarray)
 
 
 def _torque(state: ControllerState, config: dict | None, warnings: list[str]) -> dict:
-    t, tau = state.stamp, state.rows["tau"]
-    limits = config_values(config, "effort_limits", state.joints, warnings)
-    if limits is not None and not np.all(limits > 0.0):
-        warnings.append(f"configuration effort_limits not all > 0 ({limits.tolist()}): ignored")
-        limits = None
-    demand = metrics.torque_demand(t, tau, limits, SATURATION_TOL)
+    """Peaks and saturation; a joint is saturated at its configured effort limit, or, when
+    it has none (no configuration, or ``null``: unbounded in the URDF), while the controller
+    clamped its command (τ_unclamped ≠ τ). ``saturation_source`` says which, per joint."""
+    t, tau, joints = state.stamp, state.rows["tau"], state.joints
+    n = len(joints)
+    limits = config_values(config, "effort_limits", joints, warnings)
+    if limits is None:
+        limits = np.full(n, math.nan)
+    if np.any(limits <= 0.0):
+        warnings.append(f"configuration effort_limits <= 0 ignored: {limits.tolist()}")
+    known = np.isfinite(limits) & (limits > 0.0)
+    demand = metrics.torque_demand(t, tau)
     clamped = None
     if "tau_unclamped" in state.rows:
         clamped = _clamped_fraction(t, tau, state.rows["tau_unclamped"])
-    if limits is not None:
-        saturated, source = demand["saturated_fraction"], "effort_limits"
-    elif clamped is not None:
-        saturated, source = clamped, "tau_unclamped"
-    else:
-        saturated, source = np.full(len(state.joints), math.nan), None
+    saturated = np.full(n, math.nan) if clamped is None else clamped.copy()
+    if np.any(known):
+        at_limit = metrics.torque_demand(t, tau[:, known], limits[known], SATURATION_TOL)
+        saturated[known] = at_limit["saturated_fraction"]
+    source = np.where(known, "effort_limits", "tau_unclamped" if clamped is not None else None)
     return {
-        "peak_abs": _by_joint(state.joints, demand["peak_abs"]),
-        "peak_rate": _by_joint(state.joints, demand["peak_rate"]),
-        "saturated_fraction": _by_joint(state.joints, saturated),
-        "saturation_source": source,
-        "clamped_fraction": None if clamped is None else _by_joint(state.joints, clamped),
-        "effort_limits": None if limits is None else _by_joint(state.joints, limits),
+        "peak_abs": _by_joint(joints, demand["peak_abs"]),
+        "peak_rate": _by_joint(joints, demand["peak_rate"]),
+        "saturated_fraction": _by_joint(joints, saturated),
+        "saturation_source": dict(zip(joints, source.tolist(), strict=True)),
+        "clamped_fraction": None if clamped is None else _by_joint(joints, clamped),
+        "effort_limits": _by_joint(joints, np.where(known, limits, math.nan)),  # NaN → null
     }
 
 

@@ -181,14 +181,15 @@ def test_duplicate_stamps_keep_the_last_message(tmp_path):
     order = np.sort(np.concatenate((np.arange(t.size), np.flatnonzero(again))))
     dup = {k: v[order].copy() for k, v in rows.items()}
     resent = np.append(np.diff(order) == 0, False)  # the first of each pair
-    dup["q"][resent] += 0.25  # the stale answer differs: it must not be used
+    dup["q_d"][resent] += 0.25  # the stale answer differs (timer mode): it must not be used
     log = LOG0 + np.arange(order.size, dtype=np.int64) * 500_000  # the re-sent answer is later
     path = write_run(tmp_path / "bag", dup, t[order], cfg=False, log=log)
     analysis = analyze_bag(path)
     c = analysis.metrics["controllers"][NODE]
     assert c["samples"]["duplicate_stamps"] == int(again.sum())
     assert c["samples"]["analysed"] == t.size
-    np.testing.assert_array_equal(analysis.controllers[0].state.rows["q"], rows["q"])
+    np.testing.assert_array_equal(analysis.controllers[0].state.rows["q_d"], rows["q_d"])
+    assert not any("interleaved" in w for w in c["warnings"])  # same q: repeated answers
     assert [c["final_error"][j] for j in JOINTS] == (rows["q_d"][-1] - rows["q"][-1]).tolist()
     assert c["period_statistics"]["stamp_period_ms"]["max"] == pytest.approx(1.0)
 
@@ -213,6 +214,18 @@ def test_reset_keeps_the_last_run_and_warns(tmp_path):
     assert [s["t_start"] for s in c["steps"]] == [T_STEP[0]]
     assert any("reset" in w for w in c["warnings"])
     assert any(w.startswith(f"{NODE}: ") and "reset" in w for w in m["warnings"])
+
+
+def test_same_stamp_with_another_q_warns_of_interleaved_runs(tmp_path):
+    t = times(0.5)
+    rows = second_order_state(t, Y0, Y1, OMEGA, ZETA, 0.1)
+    other = second_order_state(t, Y1, Y0, OMEGA, ZETA, 0.1)  # another run, same stamps
+    both = {k: np.stack((other[k], rows[k]), axis=1).reshape(-1, 2) for k in rows}
+    log = LOG0 + np.arange(2 * t.size, dtype=np.int64)
+    c = analyze_bag(write_run(tmp_path / "bag", both, np.repeat(t, 2), log=log)).metrics
+    c = c["controllers"][NODE]
+    assert c["samples"]["duplicate_stamps"] == t.size
+    assert any(f"{t.size} stamps carry different joint positions" in w for w in c["warnings"])
 
 
 def test_last_run_drops_non_finite_samples(tmp_path):
@@ -246,7 +259,7 @@ def test_saturated_fraction_from_the_effort_limits(tmp_path):
     td = c["torque_demand"]
     at_limit = np.count_nonzero(t < 0.5)  # each sample holds until the next one
     expected = at_limit / (t.size - 1)
-    assert td["saturation_source"] == "effort_limits"
+    assert td["saturation_source"] == {"joint1": "effort_limits", "joint2": "effort_limits"}
     assert td["effort_limits"] == dict(zip(JOINTS, limits, strict=True))
     assert td["saturated_fraction"]["joint1"] == pytest.approx(expected, rel=1e-12)
     assert td["clamped_fraction"]["joint2"] == pytest.approx(expected, rel=1e-12)
@@ -259,11 +272,29 @@ def test_without_configuration_saturation_comes_from_the_clamp(tmp_path):
     m = analyze_bag(write_run(tmp_path / "bag", rows, t, cfg=False)).metrics
     c = m["controllers"][NODE]
     td = c["torque_demand"]
-    assert td["saturation_source"] == "tau_unclamped" and td["effort_limits"] is None
+    assert td["saturation_source"] == {"joint1": "tau_unclamped", "joint2": "tau_unclamped"}
+    assert td["effort_limits"] == {"joint1": None, "joint2": None}
     expected = np.count_nonzero(t < 1.0) / (t.size - 1)
     assert td["saturated_fraction"]["joint2"] == pytest.approx(expected, rel=1e-12)
     assert c["law"] is None and c["second_order"] is None and c["config_topic"] is None
     assert any("no configuration" in w for w in c["warnings"])
+
+
+def test_unbounded_joint_saturation_comes_from_the_clamp(tmp_path):
+    """``null`` limit (no limit in the URDF): that joint falls back to τ_unclamped vs τ."""
+    t = times(2.0)
+    rows = saturating_rows(t, (50.0, 30.0), until=0.5)
+    rows["tau_unclamped"][:, 1] = rows["tau"][:, 1]  # joint2 is never clamped
+    cfg = id_config(effort_limits=[50.0, None])
+    out = tmp_path / "out"
+    bag = write_run(tmp_path / "bag", rows, t, cfg=cfg)
+    assert main(["analyze", str(bag), "--out", str(out), "--quiet"]) == 0
+    td = json.loads((out / "metrics.json").read_text())["controllers"][NODE]["torque_demand"]
+    assert td["effort_limits"] == {"joint1": 50.0, "joint2": None}
+    assert td["saturation_source"] == {"joint1": "effort_limits", "joint2": "tau_unclamped"}
+    assert td["saturated_fraction"]["joint1"] > 0.2 and td["saturated_fraction"]["joint2"] == 0
+    report = (out / "report.md").read_text()
+    assert "| joint1 | 50 | " in report and "| at limit |" in report and "| clamped |" in report
 
 
 # --------------------------------------------------------------------------- references
