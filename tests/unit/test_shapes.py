@@ -1,5 +1,7 @@
 """Reference shapes: values against the analytic formulas, at the samples and between them
-(through the controllers' own sampler, :class:`Reference`), and validation one by one.
+(through the controllers' own sampler, :class:`Reference`), and validation one by one; then
+the trajectory_generator node's pure helpers (no ROS graph): parameters → shape, and shape →
+message → what the controllers parse (``messages.trajectory_from_msg``).
 
 Between samples the sinusoid is a quintic Hermite interpolation of exact (q, q̇, q̈); its
 remainder is f⁽⁶⁾(ξ)((t − a)(t − b))³/6!, whose maxima over a step h, with
@@ -14,6 +16,12 @@ import math
 import numpy as np
 import pytest
 
+from joint_space_control.nodes.messages import JointOrder, stamp_to_ns, trajectory_from_msg
+from joint_space_control.nodes.trajectory_generator import (
+    PARAMETERS,
+    build_config,
+    trajectory_message,
+)
 from joint_space_control.trajectories import shapes
 from joint_space_control.trajectories.reference import Reference, Sample
 from joint_space_control.trajectories.shapes import quintic, sinusoid, step, waypoints
@@ -253,3 +261,100 @@ def test_too_many_waypoints_rejected():
     m = shapes.MAX_POINTS + 1
     with pytest.raises(ValueError, match=f"{m} waypoints"):
         waypoints(np.zeros((m, 1)), np.arange(m, dtype=float))
+
+
+# -- the node's helpers: parameters → shape → message → controller ---------------------------
+
+DEFAULTS = {spec.name: spec.default for spec in PARAMETERS}
+
+
+def config(**changes):
+    return build_config({**DEFAULTS, **changes}, 2)
+
+
+def test_default_parameters_are_a_step_to_zero():
+    cfg = config()
+    assert cfg.shape == "step" and not cfg.needs_current
+    np.testing.assert_array_equal(cfg.trajectory().positions, [[0.0, 0.0]])
+
+
+def test_parameters_select_the_shape():
+    tr = config(shape="sinusoid", center=[0.1, 0.2], amplitude=0.3, omega=[1.0, 2.0]).trajectory()
+    np.testing.assert_allclose(tr.velocities[0], [0.3, 0.6])
+    assert config(shape="quintic", target=[1.0, 2.0]).trajectory().times.tolist() == [5.0]
+    cfg = config(shape="quintic", target=[1.0, 2.0], start_from_current=True)
+    assert cfg.needs_current
+    np.testing.assert_array_equal(cfg.trajectory(np.array([0.5, 0.5])).positions[0], [0.5, 0.5])
+    with pytest.raises(ValueError, match="needs the current configuration"):
+        cfg.trajectory()
+    cfg = config(shape="sinusoid", start_from_current=True)  # empty centre: the current one
+    assert cfg.needs_current
+    assert config(shape="sinusoid", start_from_current=True, center=None).needs_current  # YAML []
+    np.testing.assert_allclose(cfg.trajectory(np.array([1.0, -1.0])).positions[0], [1.0, -1.0])
+    cfg = config(shape="waypoints", waypoints=[1, 2, 3, 4, 5, 6], waypoint_times=[1, 2, 3])
+    np.testing.assert_array_equal(cfg.trajectory().positions, [[1, 2], [3, 4], [5, 6]])
+
+
+@pytest.mark.parametrize(
+    ("changes", "match"),
+    [
+        ({"shape": "square"}, "'shape' is 'square'"),
+        ({"target": [1.0, 2.0, 3.0]}, "'target' needs 1 or 2"),
+        ({"target": "high"}, "'target' must be a number"),
+        ({"omega": [1.0, -1.0]}, "'omega' must be >= 0"),
+        ({"center": [0.0, NAN]}, "'center' must be finite"),
+        ({"duration": 0.0}, "'duration' must be a number > 0"),
+        ({"sample_period": -0.01}, "'sample_period'"),
+        ({"start_delay": -1.0}, "'start_delay' must be a number >= 0"),
+        ({"waypoints": [0.0, 1.0, 2.0]}, "3 values, not a multiple of the 2 joints"),
+        ({"waypoints": [0.0, INF]}, "'waypoints' must be finite"),
+        ({"waypoint_times": [1.0, 1.0]}, "strictly increasing"),
+        ({"waypoint_times": [-1.0]}, ">= 0"),
+        ({"shape": "sinusoid"}, "'center' is empty"),
+        ({"shape": "sinusoid", "center": 0.0, "duration": 1e3}, "samples"),
+        ({"shape": "waypoints"}, "needs 'waypoints' and 'waypoint_times'"),
+        (
+            {"shape": "waypoints", "waypoints": [0.0] * 4, "waypoint_times": [1.0]},
+            "2 waypoints but 1 waypoint_times",
+        ),
+    ],
+)
+def test_invalid_parameters_rejected(changes, match):
+    with pytest.raises(ValueError, match=match):
+        config(**changes)
+
+
+@pytest.mark.parametrize(
+    "tr",
+    [
+        step([0.5, -0.3]),
+        sinusoid([0.1, 0.2], 0.3, [2.0, 3.0], 0.4, 1.0),
+        quintic([0.0, 0.1], [1.0, 2.0], 1.5),
+        quintic(None, [1.0, 2.0], 1.5),
+        waypoints([[0.1, 0.2], [0.3, 0.4]], [0.5, 1.25]),
+        waypoints([[0.1, 0.2], [0.3, 0.4]], [0.5, 1.25], [[1.0, 0.0], [0.0, 0.0]]),
+    ],
+)
+def test_shapes_reach_the_controllers_unchanged(tr):
+    joints = ("j1", "j2")
+    msg = trajectory_message(tr, joints)
+    assert list(msg.joint_names) == list(joints) and stamp_to_ns(msg.header.stamp) == 0
+    got = trajectory_from_msg(msg, JointOrder(joints), now=3.0, origin_ns=0)
+    assert got.start == 3.0
+    np.testing.assert_allclose(got.times, tr.times, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(got.positions, tr.positions)
+    assert (got.velocities_given, got.accelerations_given) == (
+        tr.velocities_given,
+        tr.accelerations_given,
+    )
+    np.testing.assert_array_equal(got.velocities, tr.velocities)
+    np.testing.assert_array_equal(got.accelerations, tr.accelerations)
+
+
+def test_message_stamp_and_time_resolution():
+    msg = trajectory_message(step([0.0]), ["j"], stamp_ns=12_500_000_000)
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (12, 500_000_000)
+    with pytest.raises(ValueError, match="closer than 1 ns"):
+        trajectory_message(waypoints([[0.0], [1.0]], [1.0, 1.0 + 1e-10]), ["j"])
+    with pytest.raises(ValueError, match="1 columns for 2 joints"):
+        trajectory_message(step([0.0]), ["a", "b"])
