@@ -24,27 +24,26 @@ does not give is filled in as follows (n joints independently):
       h_{k−1}M_{k−1} + 2(h_{k−1} + h_k)M_k + h_kM_{k+1} = 6(d_k − d_{k−1}),   0 < k < N,
       h_{N−1}M_{N−1} + 2h_{N−1}M_N = 6(q̇_N − d_{N−1}),
 
-  h_k = t_{k+1} − t_k, d_k = (q_{k+1} − q_k)/h_k, M_k = q̈(t_k) (Thomas algorithm, strictly
-  diagonally dominant), and q̇_k = d_k − h_k(2M_k + M_{k+1})/6. Because quintic Hermite
-  interpolation with a cubic's own knot values reproduces the cubic, every interior segment
-  *is* the spline. At the two end knots the acceleration is not the spline's but the tracked
-  q̈ (first knot) and 0 (last knot): a clamped cubic cannot also match those, and a jump in
-  q̈_d is a jump in the inverse-dynamics torque. So the first and last segments are quintics
-  that differ from the spline's cubic by (Δq̈ h²/2)·x²(1 − x)³ resp. x³(1 − x)², x ∈ [0, 1],
-  at most 0.0173 Δq̈ h², and the whole reference is C² from the tracked sample into the final
-  hold. Points on one cubic polynomial whose end conditions match (tracked q̇, q̈ at the
-  start; q̇ = q̈ = 0 at the end) are reproduced exactly. With two knots (one point at
-  T > 0 after the tracked sample, or two points) there is no interior knot: the segment is
-  the quintic from the first knot's (q, q̇, q̈) to rest, the minimum-jerk profile when the
-  tracked sample is at rest (the behaviour before splines were added).
-- **Velocities given, no accelerations**: the velocities are used as given. On each
-  segment, q and q̇ at both ends fix a cubic; the acceleration at an interior knot is the
-  mean of the two one-sided cubic accelerations,
-  q̈(t_k⁻) = (−6d + 2q̇_k + 4q̇_{k+1})/h and q̈(t_k⁺) = (6d − 4q̇_k − 2q̇_{k+1})/h of the
-  segments ending and starting there. The quintic segments make the curve C² for any
-  choice; this one reproduces a C² cubic spline on interior segments whenever the given
-  velocities are the spline's (the one-sided values then agree). End knots as above
-  (tracked q̈ at the first, 0 at the last).
+  h_k = t_{k+1} − t_k, d_k = (q_{k+1} − q_k)/h_k, M_k = q̈(t_k) (strictly diagonally
+  dominant; solved by vectorised cyclic reduction), and q̇_k = d_k − h_k(2M_k + M_{k+1})/6.
+  Because quintic Hermite interpolation with a cubic's own knot values reproduces the cubic,
+  every interior segment *is* the spline. At the two end knots the acceleration is not the
+  spline's but the tracked q̈ (first knot) and 0 (last knot): a clamped cubic cannot also
+  match those, and a jump in q̈_d is a jump in the inverse-dynamics torque. So the first and
+  last segments are quintics that differ from the spline's cubic by (Δq̈ h²/2)·x²(1 − x)³
+  resp. (Δq̈ h²/2)·x³(1 − x)², x ∈ [0, 1], at most 0.0173 |Δq̈| h², and the whole reference
+  is C² from the tracked sample into the final hold. Points on one cubic polynomial whose
+  end conditions match (tracked q̇, q̈ at the start; q̇ = q̈ = 0 at the end) are reproduced
+  exactly. With two knots (one point at T > 0 after the tracked sample, or two points) there
+  is no interior knot: the segment is the quintic from the first knot's (q, q̇, q̈) to rest,
+  the minimum-jerk profile when the tracked sample is at rest (as before splines).
+- **Velocities given, no accelerations**: the velocities are used as given. On each segment
+  [t_k, t_{k+1}], q and q̇ at both ends fix a cubic, with q̈ = (6d_k − 4q̇_k − 2q̇_{k+1})/h_k
+  at its start and (−6d_k + 2q̇_k + 4q̇_{k+1})/h_k at its end; the acceleration at an
+  interior knot is the mean of the two values meeting there. The quintic segments make the
+  curve C² for any choice; this one reproduces a C² cubic spline on interior segments
+  whenever the given velocities are the spline's (the two values then agree). End knots as
+  above (tracked q̈ at the first, 0 at the last).
 - **Both given**: used as given.
 - **Accelerations without velocities** (unusual): velocities are taken as 0 at every point.
 
@@ -207,22 +206,48 @@ def _clamped_cubic_spline(
     rhs[0] = 6 * (d[0] - v_first)
     rhs[-1] = 6 * (v_last - d[-1])
     rhs[1:-1] = 6 * (d[1:] - d[:-1])
-    # Thomas algorithm: no pivoting needed, the matrix is strictly diagonally dominant.
-    c = np.empty(size)
-    r = np.empty_like(p)
-    c[0], r[0] = upper[0] / diag[0], rhs[0] / diag[0]
-    for k in range(1, size):
-        denom = diag[k] - lower[k] * c[k - 1]
-        c[k] = upper[k] / denom
-        r[k] = (rhs[k] - lower[k] * r[k - 1]) / denom
-    M = np.empty_like(p)
-    M[-1] = r[-1]
-    for k in range(size - 2, -1, -1):
-        M[k] = r[k] - c[k] * M[k + 1]
+    M = _solve_tridiagonal(lower, diag, upper, rhs)
     v = np.empty_like(p)
     v[1:-1] = d[1:] - h[1:] * (2 * M[1:-1] + M[2:]) / 6
     v[0], v[-1] = v_first, v_last  # exactly, not to rounding
     return v, M
+
+
+def _solve_tridiagonal(
+    lower: np.ndarray, diag: np.ndarray, upper: np.ndarray, rhs: np.ndarray
+) -> np.ndarray:
+    """x with lower[i] x[i−1] + diag[i] x[i] + upper[i] x[i+1] = rhs[i] (one column of rhs per
+    joint; lower[0] = upper[−1] = 0), by parallel cyclic reduction.
+
+    Each step eliminates the neighbours at distance s from every row at once (s = 1, 2, 4,
+    …), so ⌈log₂ N⌉ vectorised steps solve the system; a Thomas sweep would be N Python
+    iterations (~6 ms instead of ~1.5 ms for 1000 points here, spent in the controller's
+    tick). No pivoting: the spline matrix is strictly diagonally dominant, and reduction
+    keeps it so.
+    """
+    a, b, c, d = lower, diag, upper, rhs
+    size, s = b.size, 1
+    while s < size:
+        alpha = -a / _shifted(b, s, 1.0)  # rows beyond the ends: identity, zero rhs
+        gamma = -c / _shifted(b, -s, 1.0)
+        a, b, c, d = (
+            alpha * _shifted(a, s, 0.0),
+            b + alpha * _shifted(c, s, 0.0) + gamma * _shifted(a, -s, 0.0),
+            gamma * _shifted(c, -s, 0.0),
+            d + alpha[:, None] * _shifted(d, s, 0.0) + gamma[:, None] * _shifted(d, -s, 0.0),
+        )
+        s *= 2
+    return d / b[:, None]
+
+
+def _shifted(x: np.ndarray, by: int, fill: float) -> np.ndarray:
+    """y[i] = x[i − by] along the first axis, ``fill`` where i − by is outside."""
+    y = np.full_like(x, fill)
+    if by > 0:
+        y[by:] = x[:-by]
+    else:
+        y[:by] = x[-by:]
+    return y
 
 
 def _mean_cubic_accelerations(t: np.ndarray, p: np.ndarray, v: np.ndarray) -> np.ndarray:

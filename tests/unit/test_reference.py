@@ -321,6 +321,18 @@ def test_spline_knot_values_match_an_independent_solution(positions_only):
     np.testing.assert_array_equal(a[-1], [0.0, 0.0])
 
 
+@pytest.mark.parametrize("points", [*range(1, 18), 1000])
+def test_spline_of_any_length_matches_the_dense_solution(points):
+    """Every size around the powers of two of the cyclic reduction, and a long one."""
+    rng = np.random.default_rng(points)
+    times = np.cumsum(rng.uniform(0.01, 1.0, points))
+    positions = rng.uniform(-1.0, 1.0, (points, 2))
+    initial = Sample(rng.normal(size=2), rng.normal(size=2), rng.normal(size=2))
+    t, p, v, _ = Reference(Trajectory.build(0.0, times, positions), initial).knots
+    expected = spline_by_slopes(t, p, initial.dq, np.zeros(2))
+    np.testing.assert_allclose(v, expected, rtol=0, atol=1e-9)
+
+
 def test_long_uneven_spline_matches_the_dense_solution():
     rng = np.random.default_rng(3)
     times = np.cumsum(rng.uniform(0.05, 2.0, 60))
