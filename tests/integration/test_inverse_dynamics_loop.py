@@ -5,17 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from rosbags.highlevel import AnyReader
 
 from joint_space_control.analysis.metrics import (
     second_order_prediction,
     step_metrics_per_joint,
-    torque_demand,
     tracking_error,
 )
+from joint_space_control.analysis.run_metrics import analyze_bag
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.recording.bag_writer import jazzy_typestore
 
 from .conftest import JOINTS
 
@@ -132,19 +130,6 @@ def test_mass_error_and_payload_degrade_tracking_for_both_laws(make_loop):
     assert results["inverse_dynamics"][0].max() < 5e-4, results
 
 
-def read_states(bag) -> dict[str, np.ndarray]:
-    """The controller's ~/state rows from a bag: {field: (N, n)}."""
-    rows = []
-    with AnyReader([bag], default_typestore=jazzy_typestore()) as reader:
-        conns = [c for c in reader.connections if c.topic == f"/{CONTROLLER}/state"]
-        for conn, _, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
-            fields = msg.layout.dim[0].label.split(",")
-            rows.append(msg.data[1:].reshape(len(fields), -1))
-    stacked = np.array(rows)
-    return {f: stacked[:, i, :] for i, f in enumerate(fields)}
-
-
 def test_large_omega_n_saturates_and_the_state_shows_it(make_loop, tmp_path):
     """Experiment 8: the peak torque grows like ω_n²; beyond the limits the command is
     clamped, and ~/state carries both the law's torque and the one sent."""
@@ -163,18 +148,19 @@ def test_large_omega_n_saturates_and_the_state_shows_it(make_loop, tmp_path):
         loop.start(JOINTS[robot], [q0 + [0.1, -0.15]])
         loop.run_until(0.8)
         loop.close()
-        state = read_states(loop.bag)
+        (controller,) = analyze_bag(loop.bag).controllers
+        state, demand = controller.state.rows, controller.metrics["torque_demand"]
         limits = np.array([2000.0, 1000.0])
-        t = np.arange(len(state["tau"])) * T_S
-        demand = torque_demand(t, state["tau"], limits)
+        assert list(demand["effort_limits"].values()) == limits.tolist()  # from ~/config
+        saturated = np.array(list(demand["saturated_fraction"].values()))
         peaks[omega] = np.abs(state["tau_unclamped"]).max(axis=0)
         assert np.all(np.abs(state["tau"]) <= limits + 1e-9)  # never beyond the limits
         if omega == 8.0:
             np.testing.assert_array_equal(state["tau"], state["tau_unclamped"])
-            assert np.all(demand["saturated_fraction"] == 0.0)
+            assert np.all(saturated == 0.0)
         else:
             assert np.any(np.abs(state["tau_unclamped"]) > limits)  # the law asked for more
-            assert np.any(demand["saturated_fraction"] > 0.0)
+            assert np.any(saturated > 0.0)
     # K_P = ω_n²: the initial torque B(q0) K_P Δ grows by (60/8)² ≈ 56 before clamping
     assert np.all(peaks[60.0] > 20 * (peaks[8.0] - 700.0)), peaks
 

@@ -3,7 +3,10 @@ run's numbers, and survives a SIGTERM mid-run."""
 
 from __future__ import annotations
 
+import json
 import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -74,6 +77,35 @@ def test_recorded_run_reads_back_with_both_readers(make_loop, tmp_path):
     assert '"law": "pd_gravity"' in config.data
     (_, ref), *_ = by_rosbags["/reference"]
     assert list(ref.points[0].positions) == SETPOINTS[ROBOT]
+
+    # `jsc analyze` on the bag finds the live run's final error, to the last bit.
+    out = tmp_path / "report"
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "joint_space_control.cli.main",
+            "analyze",
+            str(bag),
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    controller = metrics["controllers"]["/pd_gravity_controller"]
+    live_error = np.array(SETPOINTS[ROBOT]) - q[-1]
+    measured = [controller["final_error"][j] for j in JOINTS[ROBOT]]
+    np.testing.assert_allclose(measured, live_error, rtol=0, atol=1e-12)
+    assert controller["law"] == "pd_gravity" and controller["robot"] == ROBOT
+    (step,) = controller["steps"]
+    assert all(step["joints"][j]["moving"] for j in JOINTS[ROBOT])
+    report = (out / "report.md").read_text()
+    for png in ("positions.png", "error.png", "torques.png", "torque_split.png"):
+        assert (out / png).stat().st_size > 10_000 and f"]({png})" in report
 
 
 def test_sigterm_mid_run_leaves_a_complete_readable_bag(make_loop, tmp_path):
