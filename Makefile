@@ -18,7 +18,7 @@ PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3 2>/dev
 # Re-installs when the packaging changes.
 STAMP := $(VENV)/.install-stamp
 # Console scripts that must land in .venv/bin (checked after the install, see setup.cfg).
-VENV_SCRIPTS := sim_bridge pd_gravity_controller inverse_dynamics_controller recorder jsc
+VENV_SCRIPTS := sim_bridge pd_gravity_controller inverse_dynamics_controller trajectory_generator recorder jsc
 
 .PHONY: venv demo test lint format colcon-check clean distclean
 

@@ -68,6 +68,7 @@ setup(
             "pd_gravity_controller = joint_space_control.nodes.pd_gravity_controller:main",
             "inverse_dynamics_controller = "
             "joint_space_control.nodes.inverse_dynamics_controller:main",
+            "trajectory_generator = joint_space_control.nodes.trajectory_generator:main",
             "recorder = joint_space_control.nodes.recorder:main",
             "jsc = joint_space_control.cli.main:main",
         ],

@@ -22,6 +22,7 @@ EXECUTABLES = {
     "pd_gravity_controller": "joint_space_control.nodes.pd_gravity_controller",
     "inverse_dynamics_controller": "joint_space_control.nodes.inverse_dynamics_controller",
     "recorder": "joint_space_control.nodes.recorder",
+    "trajectory_generator": "joint_space_control.nodes.trajectory_generator",
 }
 
 

@@ -16,23 +16,31 @@ MCAP summary and ``metadata.yaml`` are written).
 from __future__ import annotations
 
 import importlib
+import signal
+import sys
+import threading
 import time
 from typing import Any
 
+import rclpy
 from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
 from rosbags.interfaces import QosTime as BagQosTime
 
 from joint_space_control.nodes import parameters as params
-from joint_space_control.nodes.node_main import run_node
 from joint_space_control.recording.bag_writer import STORAGES, BagWriter, RecordedTopic
 from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection
 
 #: Messages a subscription queues while the recorder is busy writing.
 QUEUE_DEPTH = 1000
+#: After a stop signal, the bag is closed once a spin of this long [s] brings no message.
+DRAIN_IDLE = 0.05
 
 PARAMETERS = (
     params.ParamSpec(
@@ -194,7 +202,32 @@ def _importable(msgtype: str) -> bool:
 
 
 def main(args: list[str] | None = None) -> None:
-    run_node(Recorder, args)
+    """Record until Ctrl-C or SIGTERM, then take what the subscriptions still hold (messages
+    delivered before the signal are not lost) and close the bag."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    try:
+        node = Recorder()
+    except (ValueError, ParameterException) as err:
+        print(f"error: {err}", file=sys.stderr)
+        rclpy.try_shutdown()
+        sys.exit(2)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.1)
+        while True:  # drain: until a spin writes nothing more
+            before = node.bag.message_count
+            executor.spin_once(timeout_sec=DRAIN_IDLE)
+            if node.bag.message_count == before:
+                break
+    finally:
+        node.close()
+        node.destroy_node()
+        rclpy.try_shutdown()
 
 
 if __name__ == "__main__":
