@@ -103,6 +103,12 @@ PARAMETERS = (
         read_only=True,
     ),
     params.ParamSpec("start_paused", False, "Start paused (call ~/resume to run)", read_only=True),
+    params.ParamSpec(
+        "pause_at",
+        0.0,
+        "Lockstep: pause once the state at this simulation time [s] is published "
+        "(0: never); setting it again re-arms it",
+    ),
     params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
 )
 
@@ -151,6 +157,7 @@ class SimBridge(Node):
         self._awaiting: int | None = None  # lockstep: stamp of the state waiting for answer
         self._sent_wall = 0.0
         self._paused = bool(v["start_paused"])
+        self._pause_at_ns = self._pause_time(v)
         self._braking = True
         self._running = True
 
@@ -186,6 +193,7 @@ class SimBridge(Node):
             )
             payload = params.nonnegative_number(values, "payload_mass")
             timeout = params.positive(values, "command_timeout")
+            pause_at = self._pause_time(values)
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
@@ -194,7 +202,15 @@ class SimBridge(Node):
             if payload != self.plant.payload_mass:
                 self.plant.set_payload(payload)
             self.command_timeout = timeout
+            if any(p.name == "pause_at" for p in changes):
+                self._pause_at_ns = pause_at
         return SetParametersResult(successful=True)
+
+    @staticmethod
+    def _pause_time(values: dict[str, Any]) -> int | None:
+        """``pause_at`` in ns, or None when off (0)."""
+        value = params.nonnegative_number(values, "pause_at")
+        return round(value * 1e9) if value > 0 else None
 
     # -- publishing --------------------------------------------------------------------
     def _publish_state(self) -> None:
@@ -210,6 +226,11 @@ class SimBridge(Node):
             self._awaiting = self._t_ns
             self._sent_wall = time.monotonic()
         self._state_pub.publish(msg)
+        if self.mode == "lockstep" and self._pause_at_ns is not None:
+            if self._t_ns >= self._pause_at_ns:
+                # Paused with this state out: its answer is ignored; ~/resume sends the
+                # same state again, and the controller repeats its answer to it.
+                self._paused, self._pause_at_ns = True, None
 
     def _republish(self, after: float) -> None:
         if self._awaiting is not None and not self._paused:

@@ -78,6 +78,18 @@ class ClosedLoop:
     def run_until(self, t_sim: float, timeout: float = 300.0) -> None:
         self.probe.run_until(t_sim, timeout, check=self.group.check_alive)
 
+    def hold_at(self, t_sim: float) -> None:
+        """With the simulator's ``pause_at`` = t_sim: wait until it has paused there and the
+        controller has answered that state (the answer is repeated after ``resume()``),
+        so that changes made now apply from the next step, in every run alike."""
+        self.run_until(t_sim)
+        self.probe.wait_for_answer(round(t_sim * 1e9), check=self.group.check_alive)
+
+    def resume(self) -> None:
+        response = self.probe.call_trigger("/sim_bridge/resume")
+        if not response.success:
+            raise RuntimeError(f"sim_bridge did not resume: {response.message}")
+
     def pause(self, settle: float = 0.3) -> None:
         """Pause the simulator and collect what is still in flight: afterwards the probe's
         last joint state is the last one the simulator published."""

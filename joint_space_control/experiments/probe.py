@@ -62,6 +62,8 @@ class LoopProbe:
         self.executor.add_node(self.node)
         self.recording = Recording()
         self.node.create_subscription(JointState, "joint_states", self._on_state, RECORD_QOS)
+        self.answered_ns = -1  # newest stamp answered on effort_command
+        self.node.create_subscription(JointState, "effort_command", self._on_command, RECORD_QOS)
         self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
         self._param_clients: dict[str, AsyncParameterClient] = {}
 
@@ -71,6 +73,9 @@ class LoopProbe:
         rec.positions.append(list(msg.position))
         rec.velocities.append(list(msg.velocity))
         rec.efforts.append(list(msg.effort))
+
+    def _on_command(self, msg: JointState) -> None:
+        self.answered_ns = max(self.answered_ns, stamp_to_ns(msg.header.stamp))
 
     # -- spinning ----------------------------------------------------------------------
     def spin_until(
@@ -105,6 +110,14 @@ class LoopProbe:
             timeout,
             f"simulation time {t_sim} s",
             check,
+        )
+
+    def wait_for_answer(
+        self, stamp_ns: int, timeout: float = 30.0, check: Callable[[], None] | None = None
+    ) -> None:
+        """Spin until a command answering the joint state stamped ``stamp_ns`` was seen."""
+        self.spin_until(
+            lambda: self.answered_ns >= stamp_ns, timeout, f"the answer to {stamp_ns} ns", check
         )
 
     def wait_for_graph(
