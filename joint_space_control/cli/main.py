@@ -35,7 +35,28 @@ def main(argv: list[str] | None = None) -> int:
         "--out", type=Path, default=None, help="output directory (default: <BAG>_report)"
     )
     p_analyze.add_argument("--quiet", action="store_true", help="no progress display on stderr")
+    p_exp = sub.add_parser(
+        "experiment",
+        help="run scenarios of THEORY.md §5 end to end (nodes, bag, analysis, theory checks)",
+    )
+    p_exp.add_argument("names", nargs="*", help="scenario names or YAML files")
+    p_exp.add_argument("--list", action="store_true", help="list the installed scenarios")
+    p_exp.add_argument("--all", action="store_true", help="run every installed scenario")
+    p_exp.add_argument("--out", type=Path, default=Path("out/experiments"), help="output dir")
+    p_exp.add_argument(
+        "--short", action="store_true", help="CI form: short durations, first and last variant"
+    )
+    p_exp.add_argument("--jobs", type=int, default=2, help="variants run in parallel")
+    p_exp.add_argument(
+        "--report", type=Path, default=None, help="also write DIR/results.md (e.g. docs/)"
+    )
     args = parser.parse_args(argv)
+    if args.command == "experiment":
+        from joint_space_control.cli import experiment
+
+        if args.list:
+            return experiment.list_scenarios()
+        return experiment.run(args.names, args.all, args.out, args.short, args.jobs, args.report)
     if args.command == "analyze":
         return analyze.run(args.bag, args.out, args.quiet)
     if args.command == "demo":

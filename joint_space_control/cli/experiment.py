@@ -1,0 +1,84 @@
+"""``jsc experiment``: run named scenarios end to end and report against the theory."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from joint_space_control.experiments import scenario as scenarios
+from joint_space_control.experiments.experiment import (
+    ExperimentResult,
+    results_page,
+    run_experiment,
+)
+from joint_space_control.experiments.runner import stop_all_runs
+
+
+def list_scenarios() -> int:
+    for name, path in scenarios.available().items():
+        try:
+            s = scenarios.load(str(path))
+            runs = f"{len(s.runs())} runs" if s.variants else "1 run"
+            print(f"{name:32s} Q{s.question}  {s.robot:12s} {runs:8s} {s.title}")
+        except ValueError as err:
+            print(f"{name:32s} INVALID: {err}")
+    return 0
+
+
+def _bar(done: int, total: int, width: int = 24) -> str:
+    filled = round(width * done / max(total, 1))
+    return f"[{'#' * filled}{'.' * (width - filled)}] {done}/{total}"
+
+
+def run(
+    names: list[str],
+    run_all: bool,
+    out: Path,
+    short: bool,
+    jobs: int,
+    report: Path | None,
+) -> int:
+    if run_all:
+        names = list(scenarios.available())
+    if not names:
+        print("jsc experiment: error: name a scenario, or use --all / --list", file=sys.stderr)
+        return 2
+    try:
+        loaded = [scenarios.load(n) for n in names]
+    except ValueError as err:
+        print(f"jsc experiment: error: {err}", file=sys.stderr)
+        return 2
+    results: list[ExperimentResult] = []
+    started = time.monotonic()
+    try:
+        for k, scenario in enumerate(loaded):
+            print(f"{_bar(k, len(loaded))} {scenario.name}: {scenario.title}", flush=True)
+            result = run_experiment(
+                scenario, out, short, jobs, lambda m: print(m, flush=True), domain_offset=k * 7
+            )
+            results.append(result)
+            verdict = {True: "agrees with the theory", False: "FAILED", None: "ran"}[result.passed]
+            print(f"  -> {verdict}: {result.out / 'summary.md'}", flush=True)
+            for o in result.outcomes:
+                print(
+                    f"     {'ok ' if o.passed else '?? ' if o.passed is None else 'NO '}{o.text}"
+                )
+            for e in result.errors:
+                print(f"     run failed: {e}")
+    except KeyboardInterrupt:
+        print("\njsc experiment: interrupted, stopping the nodes", file=sys.stderr)
+        stop_all_runs()
+        return 130
+    print(f"{_bar(len(loaded), len(loaded))} done in {time.monotonic() - started:.0f} s")
+    if report is not None:
+        page = results_page(results, report, short)
+        print(f"results page: {page}")
+    if short:  # cut runs cannot be judged against the theory: only broken runs fail
+        failed = [r.scenario.name for r in results if r.errors]
+    else:
+        failed = [r.scenario.name for r in results if r.passed is False]
+    if failed:
+        print(f"jsc experiment: {len(failed)} failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,209 @@
+"""One experiment end to end (runs → checks → summary), and the results page of many.
+
+Files per experiment ``<out>/<name>/``: one run directory per variant (``bag/``,
+``report/``, ``logs/``, ``events.json``), ``result.json`` (the checks with their numbers),
+``summary.md``, and ``sweep.png`` for a sweep.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from joint_space_control.analysis.report import write_metrics
+from joint_space_control.experiments.checks import Outcome, RunView, evaluate
+from joint_space_control.experiments.runner import RunResult, run_scenario
+from joint_space_control.experiments.scenario import Scenario
+
+
+@dataclass
+class ExperimentResult:
+    scenario: Scenario
+    out: Path
+    runs: list[RunResult]
+    outcomes: list[Outcome]
+    errors: list[str]
+
+    @property
+    def passed(self) -> bool | None:
+        """False if a run failed or a check failed; None if no check makes a claim."""
+        if self.errors or any(o.passed is False for o in self.outcomes):
+            return False
+        claims = [o.passed for o in self.outcomes if o.passed is not None]
+        return all(claims) if claims else None
+
+
+def run_experiment(
+    scenario: Scenario,
+    out: Path,
+    short: bool = False,
+    jobs: int = 2,
+    log: Callable[[str], None] = print,
+    domain_offset: int = 0,
+) -> ExperimentResult:
+    out = out / scenario.name
+    if out.exists():
+        shutil.rmtree(out)  # the experiment's own directory: a rerun replaces it
+    runs = run_scenario(scenario, out, short, jobs, log, domain_offset)
+    errors = [f"{r.label}: {r.error}" for r in runs if r.error]
+    views = [
+        RunView(r.label, r.scenario.robot, r.controller, r.events, r.scenario.parameters)
+        for r in runs
+        if r.error is None
+    ]
+    outcomes: list[Outcome] = []
+    if views:
+        for spec in scenario.checks:
+            try:
+                outcomes += evaluate(spec, views)
+            except (KeyError, ValueError, TypeError, IndexError) as err:
+                errors.append(f"check {spec.get('check')}: {type(err).__name__}: {err}")
+    result = ExperimentResult(scenario, out, runs, outcomes, errors)
+    if scenario.variants is not None and views:
+        _sweep_plot(result, out / "sweep.png")
+    write_metrics(_result_json(result, short), out / "result.json")
+    (out / "summary.md").write_text(summary_markdown(result, out))
+    return result
+
+
+def _result_json(result: ExperimentResult, short: bool) -> dict:
+    s = result.scenario
+    return {
+        "scenario": s.name,
+        "title": s.title,
+        "question": s.question,
+        "robot": s.robot,
+        "controller": s.controller,
+        "short": short,
+        "passed": result.passed,
+        "errors": result.errors,
+        "runs": [
+            {"label": r.label, "dir": str(r.out), "error": r.error, "events": r.events}
+            for r in result.runs
+        ],
+        "checks": [o.__dict__ for o in result.outcomes],
+    }
+
+
+def _verdict(passed: bool | None) -> str:
+    return {True: "agrees", False: "DISAGREES", None: "no claim"}[passed]
+
+
+def summary_markdown(result: ExperimentResult, base: Path, figures: Path | None = None) -> str:
+    """The experiment in a few lines: question, checks with numbers, figures. Links are
+    relative to ``base``; with ``figures``, the plots are copied there first."""
+    s = result.scenario
+    lines = [f"### {s.question}. {s.title}", ""]
+    if s.notes:
+        lines += [s.notes.strip(), ""]
+    lines += [
+        f"`{s.name}`: {s.robot}, `{s.controller}`, "
+        + (f"{len(result.runs)} runs over {s.variants.name}" if s.variants else "one run"),
+        "",
+    ]
+    for o in result.outcomes:
+        lines.append(f"- **{_verdict(o.passed)}** ({o.check}): {o.text}")
+    for e in result.errors:
+        lines.append(f"- **run failed**: {e}")
+    lines.append("")
+    for plot in _key_plots(result):
+        if figures is not None:
+            figures.mkdir(parents=True, exist_ok=True)
+            target = figures / f"{s.name}_{plot.parent.parent.name}_{plot.name}"
+            if plot.parent.parent == result.out:
+                target = figures / f"{s.name}_{plot.name}"
+            shutil.copyfile(plot, target)
+            plot = target
+        rel = _relative(plot, base)
+        lines += [f"![{s.name} {plot.stem}]({rel})", ""]
+    return "\n".join(lines)
+
+
+def _relative(path: Path, base: Path) -> str:
+    try:
+        return str(path.resolve().relative_to(base.resolve()))
+    except ValueError:
+        return str(path.resolve())
+
+
+def _key_plots(result: ExperimentResult) -> list[Path]:
+    sweep = result.out / "sweep.png"
+    if sweep.is_file():
+        ok = [r for r in result.runs if r.error is None]
+        return [sweep] + ([ok[-1].out / "report" / "positions.png"] if ok else [])
+    ok = [r for r in result.runs if r.error is None]
+    return [ok[0].out / "report" / "positions.png"] if ok else []
+
+
+def _sweep_plot(result: ExperimentResult, path: Path) -> None:
+    """The swept runs side by side: tracking RMS, peak torque and settling time per run."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = [r for r in result.runs if r.error is None]
+    labels = [r.label for r in runs]
+    rms, peak, settle = [], [], []
+    for r in runs:
+        c = r.controller
+        section = (
+            c["tracking_error"].get("moving_reference") or c["tracking_error"]["whole_record"]
+        )
+        rms.append(max(_finite(section["rms"].values())))
+        peak.append(max(_finite(c["torque_demand"]["peak_abs"].values())))
+        steps = c["steps"]
+        values = [j.get("settling_time_2") for j in (steps[0]["joints"].values() if steps else [])]
+        settle.append(max(_finite(values), default=math.nan))
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
+    for ax, values, title in zip(
+        axes,
+        (rms, peak, settle),
+        ("RMS tracking error [rad]", "peak |τ| [N·m]", "2 % settling time [s]"),
+        strict=True,
+    ):
+        ax.bar(range(len(values)), values, color="tab:blue")
+        ax.set_xticks(range(len(values)), labels, rotation=30, ha="right", fontsize=8)
+        ax.set_title(title, fontsize=10)
+        ax.grid(True, axis="y", alpha=0.3)
+    fig.suptitle(f"{result.scenario.title} ({result.scenario.robot})", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _finite(values) -> list[float]:
+    return [float(v) for v in values if v is not None and math.isfinite(float(v))]
+
+
+def results_page(results: list[ExperimentResult], docs: Path, short: bool) -> Path:
+    """``docs/results.md``: every experiment's answer with its numbers and plots."""
+    docs.mkdir(parents=True, exist_ok=True)
+    figures = docs / "figures"
+    lines = [
+        "# Results: the experiments of THEORY.md §5",
+        "",
+        "Generated by `jsc experiment --all --report docs/` (lockstep simulation: "
+        "regenerating gives the same numbers). Every number below is measured by the package "
+        "from a recorded run and set next to the theory's prediction; *agrees* / "
+        "*DISAGREES* is the check's verdict with the tolerance it states, *no claim* where "
+        "the theory predicts nothing.",
+        "",
+    ]
+    if short:
+        lines += ["**Short runs (CI form): durations cut, numbers not final.**", ""]
+    for result in sorted(results, key=lambda r: (r.scenario.question, r.scenario.name)):
+        lines.append(summary_markdown(result, docs, figures))
+    path = docs / "results.md"
+    path.write_text("\n".join(lines))
+    summary = []
+    for r in results:
+        entry = _result_json(r, short)
+        for run in entry["runs"]:
+            run.pop("dir")  # machine-specific: keep the page reproducible
+        summary.append(entry)
+    write_metrics({"experiments": summary}, docs / "results.json")
+    return path

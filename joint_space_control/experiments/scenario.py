@@ -1,0 +1,318 @@
+"""Experiment scenarios (``config/experiments/*.yaml``): loading and validation, no ROS.
+
+A scenario names one question of THEORY.md §5 and everything needed to answer it by a run:
+
+```yaml
+title: PD + g(q) set-point                # one line for `jsc experiment --list`
+question: 1                                # THEORY.md §5 experiment number
+robot: planar_2dof
+mode: lockstep                             # the only mode (reproducible runs)
+duration: 4.0                              # simulated time [s]
+short_duration: 1.0                        # CI form (`--short`)
+plant: {initial_positions: [0, 0]}         # sim_bridge parameters
+controller: pd_gravity_controller          # or inverse_dynamics_controller
+parameters: {kp: [2000, 1000], kd: [900, 300]}
+reference: {shape: step, target: [0.5, -0.3]}   # step | sinusoid | quintic | waypoints
+changes:                                   # optional, at simulation times (lockstep)
+  - {at: 4.0, controller: {gravity_compensation: full}}
+  - {at: 8.0, plant: {payload_mass: 5.0}}
+  - {at: 12.0, update: iterative_gravity}  # u ← u + K_P (q_d − q), from the measured q
+variants:                                  # optional: one run per value (a sweep)
+  name: omega                              # label of the swept quantity
+  key: reference.omega                     # what each value replaces
+  values: [0.5, 1.0, 2.0]
+  # or several settings per run:
+  # runs: [{label: id, set: {parameters.law: inverse_dynamics, parameters.omega_n: 10}}]
+checks: [...]                              # theory checks, see experiments/checks.py
+```
+
+Parameter names are the nodes' own (README); a scenario is checked here for structure and
+the values by the nodes when they start, as any parameter file would be.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from joint_space_control.paths import share_dir
+from joint_space_control.trajectories import shapes
+from joint_space_control.trajectories.reference import Trajectory
+
+CONTROLLERS = ("pd_gravity_controller", "inverse_dynamics_controller")
+UPDATES = ("iterative_gravity",)
+_TOP_KEYS = {
+    "title",
+    "question",
+    "robot",
+    "mode",
+    "duration",
+    "short_duration",
+    "plant",
+    "controller",
+    "parameters",
+    "reference",
+    "changes",
+    "variants",
+    "checks",
+    "notes",
+}
+
+
+@dataclass(frozen=True)
+class Change:
+    """What happens at simulation time ``at`` [s]."""
+
+    at: float
+    controller: dict[str, Any] = field(default_factory=dict)
+    plant: dict[str, Any] = field(default_factory=dict)
+    update: str | None = None
+
+
+@dataclass(frozen=True)
+class Variants:
+    """A sweep: runs labelled ``label`` each setting ``{"section.name": value}``."""
+
+    name: str
+    runs: list[tuple[str, dict[str, Any]]]
+    short: list[int]
+    """Indices of the runs kept in the short (CI) form: the first and the last."""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    path: Path
+    title: str
+    question: int
+    robot: str
+    mode: str
+    duration: float
+    short_duration: float
+    plant: dict[str, Any]
+    controller: str
+    parameters: dict[str, Any]
+    reference: dict[str, Any]
+    changes: list[Change]
+    variants: Variants | None
+    checks: list[dict[str, Any]]
+    notes: str = ""
+
+    def run_duration(self, short: bool) -> float:
+        return self.short_duration if short else self.duration
+
+    def changes_within(self, duration: float) -> list[Change]:
+        return [c for c in self.changes if c.at < duration]
+
+    def with_settings(self, label: str, settings: dict[str, Any]) -> Scenario:
+        """The scenario with ``{"section.name": value}`` applied (and no variants)."""
+        data = {
+            "plant": copy.deepcopy(self.plant),
+            "parameters": copy.deepcopy(self.parameters),
+            "reference": copy.deepcopy(self.reference),
+        }
+        for key, value in settings.items():
+            section, _, name = key.partition(".")
+            data[section][name] = value
+        return Scenario(
+            **{**self.__dict__, **data, "name": f"{self.name}/{label}", "variants": None}
+        )
+
+    def runs(self, short: bool = False) -> list[tuple[str, Scenario]]:
+        """(label, scenario) of every run: one, or one per variant (the first and last in
+        the short form)."""
+        if self.variants is None:
+            return [("run", self)]
+        chosen = self.variants.short if short else range(len(self.variants.runs))
+        return [
+            (self.variants.runs[i][0], self.with_settings(*self.variants.runs[i])) for i in chosen
+        ]
+
+
+def _label(value: Any) -> str:
+    if isinstance(value, list):
+        return "_".join(_label(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _settings_key(key: str, what: str) -> str:
+    section, _, field_name = key.partition(".")
+    if section not in ("plant", "parameters", "reference") or not field_name:
+        raise ValueError(f"{what}: keys must be plant.X, parameters.X or reference.X: {key!r}")
+    return key
+
+
+def experiments_dir() -> Path:
+    return share_dir() / "config" / "experiments"
+
+
+def available() -> dict[str, Path]:
+    """Installed scenarios by name, in name order."""
+    directory = experiments_dir()
+    return {p.stem: p for p in sorted(directory.glob("*.yaml"))} if directory.is_dir() else {}
+
+
+def find(name_or_file: str) -> Path:
+    path = Path(name_or_file)
+    if path.suffix in (".yaml", ".yml") and path.is_file():
+        return path
+    known = available()
+    if name_or_file in known:
+        return known[name_or_file]
+    raise ValueError(
+        f"no scenario {name_or_file!r}: use a YAML file or one of {', '.join(known) or 'none'}"
+    )
+
+
+def load(name_or_file: str) -> Scenario:
+    path = find(name_or_file)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as err:
+        raise ValueError(f"{path}: cannot read the scenario: {err}") from err
+    try:
+        return parse(data, path.stem, path)
+    except (TypeError, KeyError, ValueError) as err:
+        raise ValueError(f"{path}: {err}") from err
+
+
+def _mapping(data: Any, what: str) -> dict[str, Any]:
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ValueError(f"'{what}' must be a mapping, got {data!r}")
+    return dict(data)
+
+
+def _time(value: Any, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+        raise ValueError(f"'{what}' must be a number > 0, got {value!r}")
+    return float(value)
+
+
+def parse(data: Any, name: str, path: Path) -> Scenario:
+    data = _mapping(data, "scenario")
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        raise ValueError(f"unknown keys {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
+    for key in ("title", "question", "robot", "duration", "controller", "reference"):
+        if key not in data:
+            raise ValueError(f"missing '{key}'")
+    duration = _time(data["duration"], "duration")
+    short = _time(data.get("short_duration", min(duration, 1.0)), "short_duration")
+    if data["controller"] not in CONTROLLERS:
+        raise ValueError(f"'controller' must be one of {CONTROLLERS}, got {data['controller']!r}")
+    mode = data.get("mode", "lockstep")
+    if mode != "lockstep":
+        raise ValueError(f"'mode' must be lockstep (the only reproducible one), got {mode!r}")
+    changes = []
+    for k, raw in enumerate(data.get("changes") or []):
+        raw = _mapping(raw, f"changes[{k}]")
+        extra = set(raw) - {"at", "controller", "plant", "update"}
+        if extra:
+            raise ValueError(f"changes[{k}]: unknown keys {sorted(extra)}")
+        update = raw.get("update")
+        if update is not None and update not in UPDATES:
+            raise ValueError(f"changes[{k}]: 'update' must be one of {UPDATES}")
+        changes.append(
+            Change(
+                _time(raw.get("at"), f"changes[{k}].at"),
+                _mapping(raw.get("controller"), f"changes[{k}].controller"),
+                _mapping(raw.get("plant"), f"changes[{k}].plant"),
+                update,
+            )
+        )
+    times = [c.at for c in changes]
+    if times != sorted(set(times)):
+        raise ValueError("'changes' must be at strictly increasing times")
+    variants = None
+    if data.get("variants") is not None:
+        v = _mapping(data["variants"], "variants")
+        name_ = str(v.get("name", "variant"))
+        if "key" in v:  # one key, several values
+            key = _settings_key(str(v["key"]), "variants.key")
+            values = v.get("values")
+            if not isinstance(values, list) or not values:
+                raise ValueError("'variants.values' must be a non-empty list")
+            runs = [(f"{name_}={_label(x)}", {key: x}) for x in values]
+        else:  # several settings per run
+            raw_runs = v.get("runs")
+            if not isinstance(raw_runs, list) or not raw_runs:
+                raise ValueError("'variants' needs key + values, or runs")
+            runs = []
+            for k, run in enumerate(raw_runs):
+                run = _mapping(run, f"variants.runs[{k}]")
+                settings = _mapping(run.get("set"), f"variants.runs[{k}].set")
+                for key in settings:
+                    _settings_key(key, f"variants.runs[{k}].set")
+                runs.append((str(run.get("label", k)), settings))
+        labels = [label for label, _ in runs]
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"variant labels must differ: {labels}")
+        variants = Variants(name_, runs, sorted({0, len(runs) - 1}))
+    scenario = Scenario(
+        name=name,
+        path=path,
+        title=str(data["title"]),
+        question=int(data["question"]),
+        robot=str(data["robot"]),
+        mode=mode,
+        duration=duration,
+        short_duration=short,
+        plant=_mapping(data.get("plant"), "plant"),
+        controller=data["controller"],
+        parameters=_mapping(data.get("parameters"), "parameters"),
+        reference=_mapping(data["reference"], "reference"),
+        changes=changes,
+        variants=variants,
+        checks=[_mapping(c, "checks[]") for c in data.get("checks") or []],
+        notes=str(data.get("notes", "")),
+    )
+    for _, run in scenario.runs():
+        build_reference(run.reference, None, run.duration)  # fails early on a bad reference
+    return scenario
+
+
+_REFERENCE_KEYS = {
+    "step": {"target"},
+    "sinusoid": {"center", "amplitude", "omega", "phase", "duration", "sample_period"},
+    "quintic": {"target", "duration"},
+    "waypoints": {"positions", "times"},
+}
+
+
+def build_reference(spec: dict[str, Any], q0: np.ndarray | None, duration: float) -> Trajectory:
+    """The reference trajectory of a scenario (times from 0). ``q0`` is the plant's initial
+    configuration: the sinusoid's default centre and the quintic's start."""
+    shape = spec.get("shape")
+    if shape not in _REFERENCE_KEYS:
+        raise ValueError(f"reference shape must be one of {sorted(_REFERENCE_KEYS)}: {shape!r}")
+    unknown = set(spec) - _REFERENCE_KEYS[shape] - {"shape"}
+    if unknown:
+        raise ValueError(f"reference '{shape}': unknown keys {sorted(unknown)}")
+    try:
+        if shape == "step":
+            return shapes.step(spec["target"])
+        if shape == "sinusoid":
+            amplitude = spec["amplitude"]
+            center = spec.get("center")
+            if center is None:
+                center = q0 if q0 is not None else np.zeros(np.size(amplitude))
+            return shapes.sinusoid(
+                center,
+                amplitude,
+                spec["omega"],
+                spec.get("phase", 0.0),
+                spec.get("duration", duration),
+                spec.get("sample_period", shapes.DEFAULT_SAMPLE_PERIOD),
+            )
+        if shape == "quintic":
+            return shapes.quintic(q0, spec["target"], spec["duration"])
+        return shapes.waypoints(spec["positions"], spec["times"])
+    except KeyError as err:
+        raise ValueError(f"reference '{shape}' needs {err}") from None

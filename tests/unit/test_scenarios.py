@@ -1,0 +1,177 @@
+"""Experiment scenarios: every installed file loads; invalid ones are refused with a reason;
+variants and references are built as written; the theory checks judge synthetic metrics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from joint_space_control.analysis.metrics import second_order_prediction
+from joint_space_control.experiments import checks
+from joint_space_control.experiments.scenario import available, build_reference, load, parse
+
+MINIMAL = {
+    "title": "t",
+    "question": 1,
+    "robot": "planar_2dof",
+    "duration": 2.0,
+    "controller": "pd_gravity_controller",
+    "reference": {"shape": "step", "target": [0.1, 0.2]},
+}
+
+
+def test_every_installed_scenario_loads_and_answers_a_question():
+    scenarios = available()
+    assert len(scenarios) >= 12
+    questions = set()
+    for name in scenarios:
+        s = load(name)
+        questions.add(s.question)
+        assert s.checks, f"{name} checks nothing"
+        assert s.short_duration <= s.duration
+        for label, run in s.runs(short=True):
+            assert run.variants is None and label
+    assert questions == set(range(1, 9))  # THEORY.md §5: experiments 1–8
+    robots = {load(n).robot for n in scenarios}
+    assert robots == {"planar_2dof", "iiwa"}
+
+
+def test_variants_replace_the_named_settings():
+    s = load("q7_mismatch_inverse_dynamics")
+    runs = dict(s.runs())
+    assert list(runs) == ["nominal", "mass_-20pct", "payload_10kg", "friction_20"]
+    assert runs["mass_-20pct"].parameters["model_mass_scale"] == 0.8
+    assert "model_mass_scale" not in runs["nominal"].parameters
+    assert runs["payload_10kg"].plant["payload_mass"] == 10.0
+    assert "payload_mass" not in s.plant  # the scenario itself is not changed
+    assert [label for label, _ in s.runs(short=True)] == ["nominal", "friction_20"]
+    sweep = load("q8_settling_sweep")
+    assert [r.parameters["omega_n"] for _, r in sweep.runs()] == [5.0, 10.0, 20.0, 40.0, 80.0]
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"colour": "red"}, "unknown keys"),
+        ({"duration": -1}, "'duration' must be a number > 0"),
+        ({"controller": "lqr"}, "'controller' must be one of"),
+        ({"mode": "realtime"}, "lockstep"),
+        ({"reference": {"shape": "spiral"}}, "reference shape"),
+        ({"reference": {"shape": "step"}}, "needs 'target'"),
+        ({"reference": {"shape": "step", "target": [0.1], "speed": 2}}, "unknown keys"),
+        ({"changes": [{"at": 2.0}, {"at": 1.0}]}, "strictly increasing"),
+        ({"changes": [{"at": 1.0, "update": "guess"}]}, "'update' must be one of"),
+        ({"variants": {"key": "gains.kp", "values": [1]}}, "plant.X, parameters.X"),
+        ({"variants": {"key": "parameters.kp", "values": []}}, "non-empty list"),
+    ],
+)
+def test_invalid_scenarios_are_refused_with_a_reason(change, match):
+    with pytest.raises(ValueError, match=match):
+        parse({**MINIMAL, **change}, "bad", Path("bad.yaml"))
+
+
+def test_a_scenario_file_outside_the_package_loads(tmp_path):
+    path = tmp_path / "mine.yaml"
+    path.write_text(yaml.safe_dump(MINIMAL))
+    assert load(str(path)).name == "mine"
+    with pytest.raises(ValueError, match="no scenario"):
+        load("no_such_scenario")
+
+
+def test_references_are_built_from_the_initial_configuration():
+    q0 = np.array([-1.0, 0.5])
+    sin = build_reference({"shape": "sinusoid", "amplitude": 0.2, "omega": 2.0}, q0, 3.0)
+    np.testing.assert_allclose(sin.positions[0], q0)  # centre defaults to q0
+    assert sin.times[-1] == pytest.approx(3.0)
+    quintic = build_reference({"shape": "quintic", "target": [0, 0], "duration": 2}, q0, 5.0)
+    np.testing.assert_allclose(quintic.positions, [q0, [0.0, 0.0]])
+
+
+# --------------------------------------------------------------------------- checks
+def controller_metrics(overshoot, settling, sse=0.0, kp=(64.0,), kd=(8.0,)):
+    theory = second_order_prediction(np.sqrt(kp), np.array(kd) / (2 * np.sqrt(kp)))
+    prediction = {k: float(v[0]) for k, v in theory.items()}
+    return {
+        "joints": ["j1"],
+        "final_error": {"j1": sse},
+        "config": {"kp": list(kp), "kd": list(kd)},
+        "steps": [
+            {
+                "joints": {
+                    "j1": {
+                        "moving": True,
+                        "overshoot_percent": overshoot,
+                        "settling_time_2": settling,
+                        "steady_state_error": sse,
+                        "target": 0.5,
+                        "prediction": prediction,
+                    }
+                }
+            }
+        ],
+    }, prediction
+
+
+def view(c, label="run", events=()):
+    return checks.RunView(label, "planar_2dof", c, list(events), {})
+
+
+def test_second_order_check_uses_the_stated_tolerances():
+    c, p = controller_metrics(0, 0)
+    good, _ = controller_metrics(p["overshoot_percent"] + 0.9, p["settling_time_2"] * 1.04)
+    bad_os, _ = controller_metrics(p["overshoot_percent"] + 1.1, p["settling_time_2"])
+    bad_ts, _ = controller_metrics(p["overshoot_percent"], p["settling_time_2"] * 1.06)
+    bad_sse, _ = controller_metrics(p["overshoot_percent"], p["settling_time_2"], sse=2e-4)
+    verdicts = [checks.second_order([view(x)])[0].passed for x in (good, bad_os, bad_ts, bad_sse)]
+    assert verdicts == [True, False, False, False]
+
+
+def test_final_error_tracking_and_degradation_checks():
+    def tracked(rms):
+        return {"joints": ["j1"], "tracking_error": {"whole_record": {"rms": {"j1": rms}}}}
+
+    runs = [view(tracked(x), f"w{x}") for x in (0.01, 0.02, 0.05)]
+    assert checks.tracking_grows(runs)[0].passed is True
+    assert checks.tracking_grows(runs[::-1])[0].passed is False
+    assert checks.degrades(runs)[0].passed is True
+    assert checks.degrades(runs[::-1])[0].passed is False
+    fe = [view({"joints": ["j1"], "final_error": {"j1": e}}) for e in (5e-4, 2e-3)]
+    assert [o.passed for o in checks.final_error(fe, tol=1e-3)] == [True, False]
+
+
+def test_pd_offset_check_balances_gravity_against_the_spring():
+    """A measured equilibrium that satisfies g(q_e) = K_P(q_d − q_e) passes; one that does
+    not fails."""
+    from joint_space_control.model.dynamics import RobotModel
+    from joint_space_control.model.robots import resolve_robot
+
+    model = RobotModel(resolve_robot("planar_2dof"))
+    kp = np.array([2000.0, 1000.0])
+    q_d = np.array([0.5, -0.3])
+    q_e = q_d.copy()
+    for _ in range(100):  # fixed point of q_e = q_d − K_P⁻¹ g(q_e)
+        q_e = q_d - model.gravity(q_e) / kp
+
+    def run(q):
+        c = {
+            "joints": ["joint1", "joint2"],
+            "final_error": dict(zip(["joint1", "joint2"], (q_d - q).tolist(), strict=True)),
+            "config": {"kp": kp.tolist()},
+        }
+        return view(c, events=[{"q": q.tolist()}])
+
+    assert checks.pd_offset([run(q_e)])[0].passed is True
+    assert checks.pd_offset([run(q_e + 0.01)])[0].passed is False
+
+
+def test_gravity_bound_is_the_largest_gravity_jacobian_norm():
+    """planar_2dof: g = 9.81 [75 c1 + 25 c12, 25 c12] (m = 50 kg, COM at 0.5 m, a = 1 m), so
+    ∂g/∂q = −9.81 [[75 s1 + 25 s12, 25 s12], [25 s12, 25 s12]], largest in norm at
+    s1 = s12 = ±1: 9.81 · λ_max([[100, 25], [25, 25]]) = 9.81 · (125 + √8125) / 2."""
+    exact = 9.81 * (125 + np.sqrt(8125.0)) / 2
+    alpha = checks.gravity_bound("planar_2dof", samples=2000)
+    assert alpha <= exact * (1 + 1e-9)  # sampled: never above the supremum
+    assert alpha > 0.995 * exact
