@@ -47,7 +47,7 @@ class ClosedLoop:
             self.group.start(
                 controller, {"robot": robot, **(controller_params or {}), "trigger": "state"}
             )
-            self.probe = LoopProbe(domain_id)
+            self.probe = LoopProbe(domain_id, name=f"jsc_probe_{domain_id}")
             self.probe.wait_for_graph(check=self.group.check_alive)
             if record is not None:
                 self.probe.wait_for_subscriber(
