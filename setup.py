@@ -35,6 +35,9 @@ PYPI_REQUIRES = [
 TEST_REQUIRES = [
     "pytest>=8,<10",
     "pytest-timeout>=2.2,<3",
+    # Two workers: the lockstep integration tests wait on inter-process messages more
+    # than they compute, so two at a time nearly halve the suite's wall time.
+    "pytest-xdist>=3.5,<4",
     "hypothesis>=6.100,<7",
     # Pinned to one minor series: `ruff format --check` output changes between minors.
     "ruff>=0.17,<0.18",

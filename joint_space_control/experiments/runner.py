@@ -90,8 +90,16 @@ def run_scenario(
             log(f"  {run.name}: FAILED: {result.error}")
         return result
 
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        return list(pool.map(one, range(len(runs))))
+    pool = ThreadPoolExecutor(max_workers=max(1, jobs))
+    try:
+        futures = [pool.submit(one, k) for k in range(len(runs))]
+        return [f.result() for f in futures]
+    except KeyboardInterrupt:
+        pool.shutdown(wait=False, cancel_futures=True)
+        stop_all_runs()  # the running loops' processes; their threads then fail and end
+        raise
+    finally:
+        pool.shutdown(wait=True)
 
 
 def _safe(label: str) -> str:

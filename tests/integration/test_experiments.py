@@ -1,0 +1,71 @@
+"""`jsc experiment` end to end: a scenario checked against the theory, and every installed
+scenario in its short (CI) form."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from joint_space_control.analysis.metrics import second_order_prediction
+from joint_space_control.experiments.scenario import available
+
+pytestmark = pytest.mark.integration
+
+
+def jsc(*args: str, timeout: float) -> subprocess.CompletedProcess:
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    return subprocess.run(
+        [sys.executable, "-m", "joint_space_control.cli.main", "experiment", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=env,
+    )
+
+
+def test_inverse_dynamics_scenario_end_to_end_agrees_with_the_theory(tmp_path):
+    result = jsc("q6_inverse_dynamics_nominal", "--out", str(tmp_path), timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    out = tmp_path / "q6_inverse_dynamics_nominal"
+    verdict = json.loads((out / "result.json").read_text())
+    assert verdict["passed"] is True
+    assert {c["check"] for c in verdict["checks"]} == {"second_order"}
+    # The report's own metrics, against the analytic second order (same tolerances as the
+    # closed-loop tests): overshoot within 1 point, 2 % settling within 5 %, e_ss < 1e-4.
+    metrics = json.loads((out / "report" / "metrics.json").read_text())
+    controller = metrics["controllers"]["/inverse_dynamics_controller"]
+    theory = second_order_prediction([8.0, 12.0], [0.5, 0.8])
+    (step,) = controller["steps"]
+    for j, name in enumerate(["joint1", "joint2"]):
+        m = step["joints"][name]
+        assert abs(m["overshoot_percent"] - theory["overshoot_percent"][j]) < 1.0
+        assert abs(m["settling_time_2"] - theory["settling_time_2"][j]) <= max(
+            0.05 * theory["settling_time_2"][j], 1e-3
+        )
+        assert abs(m["steady_state_error"]) < 1e-4
+    summary = (out / "summary.md").read_text()
+    assert "agrees" in summary and "positions.png" in summary
+    assert (out / "bag" / "metadata.yaml").is_file()
+
+
+def test_every_scenario_runs_in_its_short_form(tmp_path):
+    docs = tmp_path / "docs"
+    result = jsc("--all", "--short", "--out", str(tmp_path), "--report", str(docs), timeout=1200)
+    assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-4000:]
+    for name in available():
+        verdict = json.loads((tmp_path / name / "result.json").read_text())
+        assert verdict["errors"] == [], (name, verdict["errors"])
+        for run in verdict["runs"]:
+            report = Path(run["dir"]) / "report"
+            assert (report / "report.md").is_file() and (report / "metrics.json").is_file()
+        assert verdict["checks"], f"{name}: no check evaluated"
+    page = (docs / "results.md").read_text()
+    assert page.count("### ") == len(available())
+    for link in [line for line in page.splitlines() if line.startswith("![")]:
+        target = link[link.index("](") + 2 : -1]
+        assert (docs / target).is_file(), target
