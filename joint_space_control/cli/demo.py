@@ -23,7 +23,7 @@ def _params(name: str) -> dict:
     return yaml.safe_load(config_file(name).read_text())["/**"]["ros__parameters"]
 
 
-def run(out: Path, duration: float, domain_id: int) -> int:
+def run(out: Path, duration: float, domain_id: int | None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     bag, report = out / "bag", out / "report"
     for previous in (bag, report):  # the demo's own outputs from an earlier run
@@ -31,7 +31,7 @@ def run(out: Path, duration: float, domain_id: int) -> int:
             shutil.rmtree(previous)
     print(
         f"jsc demo: planar_2dof, PD + g(q), step to {SETPOINT} rad, {duration:g} s "
-        f"simulated in lockstep (ROS domain {domain_id}), recorded to {bag}"
+        f"simulated in lockstep, recorded to {bag}"
     )
     try:
         with ClosedLoop(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -24,7 +23,7 @@ def main(argv: list[str] | None = None) -> int:
         "--domain-id",
         type=int,
         default=None,
-        help="ROS domain for the run (default: one derived from the pid)",
+        help="ROS domain for the run (default: one no other run on this machine uses)",
     )
     p_analyze = sub.add_parser(
         "analyze",
@@ -60,8 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "analyze":
         return analyze.run(args.bag, args.out, args.quiet)
     if args.command == "demo":
-        domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
-        return demo.run(args.out, args.duration, domain)
+        return demo.run(args.out, args.duration, args.domain_id)
     return 2  # pragma: no cover - argparse requires a command
 
 

@@ -42,12 +42,11 @@ def run_experiment(
     short: bool = False,
     jobs: int = 2,
     log: Callable[[str], None] = print,
-    domain_offset: int = 0,
 ) -> ExperimentResult:
     out = out / scenario.name
     if out.exists():
         shutil.rmtree(out)  # the experiment's own directory: a rerun replaces it
-    runs = run_scenario(scenario, out, short, jobs, log, domain_offset)
+    runs = run_scenario(scenario, out, short, jobs, log)
     errors = [f"{r.label}: {r.error}" for r in runs if r.error]
     views = [
         RunView(r.label, r.scenario.robot, r.controller, r.events, r.scenario.parameters)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from joint_space_control.experiments.domains import lease_domain
 from joint_space_control.experiments.probe import LoopProbe
 from joint_space_control.experiments.processes import ProcessGroup
 
@@ -24,7 +25,7 @@ class ClosedLoop:
     def __init__(
         self,
         workdir: Path,
-        domain_id: int,
+        domain_id: int | None,
         robot: str,
         controller: str = "pd_gravity_controller",
         controller_params: Mapping[str, Any] | None = None,
@@ -35,6 +36,11 @@ class ClosedLoop:
         self.robot = robot
         self.controller = controller
         self.bag = record
+        self._lease = None
+        if domain_id is None:  # one no other run on this machine uses
+            self._lease = lease_domain()
+            domain_id = self._lease.domain_id
+        self.domain_id = domain_id
         self.group = ProcessGroup(workdir, domain_id)
         self.probe: LoopProbe | None = None
         try:
@@ -107,6 +113,8 @@ class ClosedLoop:
             self.probe.close()
             self.probe = None
         self.group.stop_all()
+        if self._lease is not None:
+            self._lease.release()
 
     def __enter__(self) -> ClosedLoop:
         return self

@@ -10,7 +10,6 @@ its own ROS domain.
 from __future__ import annotations
 
 import json
-import os
 import threading
 import traceback
 from collections.abc import Callable
@@ -61,17 +60,12 @@ def stop_all_runs() -> None:
         loop.close()
 
 
-def _domain(index: int) -> int:
-    return 1 + (os.getpid() * 7 + index * 13) % 100
-
-
 def run_scenario(
     scenario: Scenario,
     out: Path,
     short: bool = False,
     jobs: int = 2,
     log: Callable[[str], None] = print,
-    domain_offset: int = 0,
 ) -> list[RunResult]:
     """Every run of ``scenario`` (one, or one per variant, ``jobs`` at a time)."""
     runs = scenario.runs(short)
@@ -82,7 +76,7 @@ def run_scenario(
         target = out if len(runs) == 1 else out / _safe(label)
         result = RunResult(label, run, target)
         try:
-            run_once(run, target, _domain(domain_offset + k), short, result)
+            run_once(run, target, short, result)
             log(f"  {run.name}: done")
         except Exception as err:  # noqa: BLE001 - reported, the other runs go on
             result.error = f"{type(err).__name__}: {err}"
@@ -106,7 +100,7 @@ def _safe(label: str) -> str:
     return "".join(c if c.isalnum() or c in "-_.=" else "_" for c in label)
 
 
-def run_once(scenario: Scenario, out: Path, domain: int, short: bool, result: RunResult) -> None:
+def run_once(scenario: Scenario, out: Path, short: bool, result: RunResult) -> None:
     """One closed-loop run into ``out`` (bag/, report/, logs/, events.json)."""
     out.mkdir(parents=True, exist_ok=True)
     bag = out / "bag"
@@ -116,11 +110,13 @@ def run_once(scenario: Scenario, out: Path, domain: int, short: bool, result: Ru
     changes = scenario.changes_within(duration)
     with ClosedLoop(
         out / "logs",
-        domain,
+        None,  # a leased domain: concurrent runs never meet
         scenario.robot,
         scenario.controller,
         controller_params=scenario.parameters,
-        sim_params={**scenario.plant, "pause_at": changes[0].at if changes else 0.0},
+        # The simulator pauses at each change and at the end: every run ends at exactly
+        # `duration`, with the same samples.
+        sim_params={**scenario.plant, "pause_at": changes[0].at if changes else duration},
         record=bag,
     ) as loop:
         with _active_lock:
@@ -168,11 +164,10 @@ def _drive(loop: ClosedLoop, scenario: Scenario, duration: float, result: RunRes
             {"t": change.at, "q": q[-1].tolist(), "controller": controller, **change.plant}
         )
         _set(loop, scenario.controller, controller)
-        nxt = changes[k + 1].at if k + 1 < len(changes) else 0.0
+        nxt = changes[k + 1].at if k + 1 < len(changes) else duration
         _set(loop, "sim_bridge", {**change.plant, "pause_at": nxt})
         loop.resume()
-    loop.run_until(duration)
-    loop.pause()
+    loop.hold_at(duration)
     _, q, _, _ = loop.probe.recording.arrays()
     result.events.append({"t": duration, "q": q[-1].tolist(), "end": True})
 

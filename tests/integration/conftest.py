@@ -6,7 +6,6 @@ stopped when the test ends, passed or failed.
 
 from __future__ import annotations
 
-import itertools
 import os
 from collections.abc import Iterator
 from pathlib import Path
@@ -14,18 +13,28 @@ from typing import Any
 
 import pytest
 
+from joint_space_control.experiments.domains import DomainLease, lease_domain
 from joint_space_control.experiments.loop import ClosedLoop
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-_domains = itertools.count()
+
+
+_leases: list[DomainLease] = []
 
 
 def next_domain_id() -> int:
-    """A domain id unique within this test process (1..100), offset by worker and pid so
-    that parallel pytest workers and concurrent runs do not meet."""
-    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")[2:] or "0"
-    base = (int(worker) * 37 + os.getpid()) % 100
-    return 1 + (base + next(_domains)) % 100
+    """A ROS domain no other test (worker or concurrent run) on this machine uses; held
+    until the end of the current test."""
+    lease = lease_domain()
+    _leases.append(lease)
+    return lease.domain_id
+
+
+@pytest.fixture(autouse=True)
+def _release_domains() -> Iterator[None]:
+    yield
+    while _leases:
+        _leases.pop().release()
 
 
 #: Gains that are well damped and stable at 1 kHz for each robot (K_D T_s ≪ B_ii).
@@ -61,7 +70,7 @@ def make_loop(tmp_path: Path) -> Iterator[Any]:
     ) -> ClosedLoop:
         loop = ClosedLoop(
             tmp_path / f"run{len(loops)}",
-            next_domain_id(),
+            None,  # leased: no other loop on the machine shares it
             robot,
             controller,
             controller_params={**GAINS[robot], **(controller_params or {})},
