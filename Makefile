@@ -43,10 +43,11 @@ $(STAMP): setup.py setup.cfg
 demo: venv
 	$(VENV)/bin/jsc demo --out out/demo
 
+# Two pytest workers (pytest-xdist): each integration test leases its own ROS domain.
 test: venv
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
-	$(PY) -m pytest
+	$(PY) -m pytest -n 2
 
 lint: venv
 	$(VENV)/bin/ruff check .
