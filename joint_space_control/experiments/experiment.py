@@ -111,8 +111,9 @@ def summary_markdown(result: ExperimentResult, base: Path, figures: Path | None 
     for plot in _key_plots(result):
         if figures is not None:
             figures.mkdir(parents=True, exist_ok=True)
-            target = figures / f"{s.name}_{plot.parent.parent.name}_{plot.name}"
-            if plot.parent.parent == result.out:
+            run_dir = plot.parent.parent  # <experiment>/<run>/report/x.png, or <experiment>/
+            target = figures / f"{s.name}_{run_dir.name}_{plot.name}"
+            if plot.parent == result.out or run_dir == result.out:
                 target = figures / f"{s.name}_{plot.name}"
             shutil.copyfile(plot, target)
             plot = target
