@@ -1,0 +1,272 @@
+"""Serialized images of the control-path messages: numpy views straight into the CDR bytes.
+
+A JointState with fixed names has a fixed layout on the wire (XCDR1, little endian, as
+Fast DDS and the rosidl type support write it): only the stamp and the float64 values change
+from one message to the next. Converting the Python message object instead costs more than
+the control law (the names alone are seven strings to build or convert, and the arrays go
+through Python lists), so the control path keeps one image of each message and
+
+- publishes by writing the values into its views and handing the bytes to
+  ``Publisher.publish`` (raw publishing, no conversion at all);
+- receives with raw subscriptions and reads the values with ``np.frombuffer`` when the
+  message has the layout of the previous one (same frame, names and array sizes: every byte
+  that is not padding, a stamp or a value is compared); anything else goes the ordinary way
+  (deserialize, validate) and its layout is learned for the next messages.
+
+Every image checks itself once against the rosidl deserializer when it is built.
+"""
+
+from __future__ import annotations
+
+import struct
+import sys
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from joint_space_control.nodes.messages import JointOrder
+
+#: Encapsulation header of a little-endian plain CDR payload.
+CDR_LE = b"\x00\x01\x00\x00"
+_STAMP = struct.Struct("<iI")
+_F8 = np.dtype("<f8")
+
+
+class _CdrWriter:
+    """Builds an XCDR1 little-endian payload and remembers where each part is.
+
+    Alignment is relative to the end of the 4-byte encapsulation header. ``fixed`` lists the
+    (offset, bytes) that identify the layout (lengths, counts, characters), without padding.
+    """
+
+    def __init__(self) -> None:
+        self.buf = bytearray(CDR_LE)
+        self.fixed: list[tuple[int, bytes]] = [(0, CDR_LE[:2])]
+        self.free: list[tuple[int, int]] = [(2, 4)]  # [start, end): options, stamp, values
+
+    def _align(self, size: int) -> None:
+        self.buf += bytes(-(len(self.buf) - 4) % size)
+
+    def _put(self, data: bytes, fixed: bool) -> int:
+        offset = len(self.buf)
+        self.buf += data
+        if fixed:
+            self.fixed.append((offset, data))
+        else:
+            self.free.append((offset, len(self.buf)))
+        return offset
+
+    def uint32(self, value: int, fixed: bool = True) -> int:
+        self._align(4)
+        return self._put(struct.pack("<I", value), fixed)
+
+    def string(self, text: str) -> None:
+        data = text.encode() + b"\x00"
+        self.uint32(len(data))
+        self._put(data, True)
+
+    def doubles(self, count: int) -> int:
+        """A float64 sequence of ``count`` zeros; returns the offset of the first value."""
+        self.uint32(count)
+        if count:
+            self._align(8)
+        return self._put(bytes(8 * count), False)
+
+    def merged_fixed(self) -> list[tuple[int, bytes]]:
+        """Adjacent fixed parts joined (fewer comparisons per message)."""
+        merged: list[tuple[int, bytes]] = []
+        for offset, data in self.fixed:
+            if merged and merged[-1][0] + len(merged[-1][1]) == offset:
+                merged[-1] = (merged[-1][0], merged[-1][1] + data)
+            else:
+                merged.append((offset, data))
+        return merged
+
+    def spans(self) -> list[tuple[int, bytes]]:
+        """Everything but the free parts, padding included (zeros here): a message written
+        from the same image matches these few spans exactly."""
+        spans, position = [], 0
+        for start, end in sorted(self.free) + [(len(self.buf), len(self.buf))]:
+            if start > position:
+                spans.append((position, bytes(self.buf[position:start])))
+            position = max(position, end)
+        return spans
+
+
+class JointStateImage:
+    """One JointState layout: names, frame and array sizes fixed; stamp and values free.
+
+    ``position``, ``velocity`` and ``effort`` are writable float64 views into the image
+    (empty when that array is absent from the layout).
+    """
+
+    def __init__(
+        self,
+        names: Sequence[str],
+        sizes: tuple[int, int, int] | None = None,
+        frame_id: str = "",
+    ) -> None:
+        if sys.byteorder != "little":  # pragma: no cover - every supported host is
+            raise RuntimeError("serialized images assume a little-endian host")
+        self.names = tuple(names)
+        self.sizes = sizes = sizes or (len(self.names),) * 3
+        w = _CdrWriter()
+        self._stamp_offset = w.uint32(0, fixed=False)
+        w.uint32(0, fixed=False)
+        w.string(frame_id)
+        w.uint32(len(self.names))
+        for name in self.names:
+            w.string(name)
+        offsets = [w.doubles(size) for size in sizes]
+        self.size = len(w.buf)
+        self._buf = w.buf
+        self._fixed = w.merged_fixed()
+        self._spans = w.spans()
+        self.position, self.velocity, self.effort = (
+            np.frombuffer(self._buf, _F8, count=size, offset=offset)
+            for offset, size in zip(offsets, sizes, strict=True)
+        )
+        self.offsets = offsets  # of the first value of each array
+        self._check(frame_id)
+
+    @classmethod
+    def like(cls, msg: JointState) -> JointStateImage:
+        """The layout of a received message."""
+        sizes = (len(msg.position), len(msg.velocity), len(msg.effort))
+        return cls(msg.name, sizes, msg.header.frame_id)
+
+    def _check(self, frame_id: str) -> None:
+        values = [np.arange(1, s + 1) * (k + 1.5) for k, s in enumerate(self.sizes)]
+        for view, v in zip((self.position, self.velocity, self.effort), values, strict=True):
+            view[:] = v
+        self.set_stamp(1_234_567_890_123)
+        msg = deserialize_message(self.to_bytes(), JointState)
+        ok = (
+            list(msg.name) == list(self.names)
+            and msg.header.frame_id == frame_id
+            and (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1234, 567_890_123)
+            and all(
+                np.array_equal(np.asarray(getattr(msg, f)), v)
+                for f, v in zip(("position", "velocity", "effort"), values, strict=True)
+            )
+        )
+        if not ok:  # pragma: no cover - a layout bug must never reach the wire
+            raise RuntimeError("JointState image does not deserialize to itself")
+        for view in (self.position, self.velocity, self.effort):
+            view[:] = 0.0
+        self.set_stamp(0)
+
+    # -- writing ---------------------------------------------------------------------
+    def set_stamp(self, ns: int) -> None:
+        _STAMP.pack_into(self._buf, self._stamp_offset, *divmod(ns, 1_000_000_000))
+
+    def to_bytes(self) -> bytes:
+        """The serialized message, for ``Publisher.publish``."""
+        return bytes(self._buf)
+
+    # -- reading ---------------------------------------------------------------------
+    def matches(self, raw: bytes) -> bool:
+        """True when ``raw`` has this layout (every non-padding byte outside the stamp and
+        the values equal). Publishers may append padding: longer is fine."""
+        if len(raw) < self.size:
+            return False
+        for offset, data in self._spans:  # quick: padding zeroed as in our own images
+            if not raw.startswith(data, offset):
+                break
+        else:
+            return True
+        for offset, data in self._fixed:  # exact: other writers leave padding undefined
+            if not raw.startswith(data, offset):
+                return False
+        return True
+
+    def read(self, raw: bytes, which: int) -> np.ndarray:
+        """Values of array ``which`` (0 position, 1 velocity, 2 effort) of a matching
+        message: a read-only view into ``raw``."""
+        return np.frombuffer(raw, _F8, count=self.sizes[which], offset=self.offsets[which])
+
+    @staticmethod
+    def stamp(raw: bytes) -> int:
+        sec, nsec = _STAMP.unpack_from(raw, 4)
+        return sec * 1_000_000_000 + nsec
+
+
+class Float64ArrayImage:
+    """A Float64MultiArray with a fixed layout (dimensions, data size); ``data`` is a
+    writable float64 view into the image."""
+
+    def __init__(self, template: Float64MultiArray, size: int) -> None:
+        w = _CdrWriter()
+        w.uint32(len(template.layout.dim))
+        for dim in template.layout.dim:
+            w.string(dim.label)
+            w.uint32(dim.size)
+            w.uint32(dim.stride)
+        w.uint32(template.layout.data_offset)
+        offset = w.doubles(size)
+        self._buf = w.buf
+        self.data = np.frombuffer(self._buf, _F8, count=size, offset=offset)
+        self.data[:] = np.arange(size) + 0.5
+        msg = deserialize_message(self.to_bytes(), Float64MultiArray)
+        if msg.layout != template.layout or not np.array_equal(msg.data, self.data):
+            raise RuntimeError(  # pragma: no cover - a layout bug must never reach the wire
+                "Float64MultiArray image does not deserialize to itself"
+            )
+        self.data[:] = 0.0
+
+    def to_bytes(self) -> bytes:
+        return bytes(self._buf)
+
+
+class JointStateReader:
+    """Arrays of the controlled joints from raw JointState messages.
+
+    ``fields`` picks the arrays (0 position, 1 velocity, 2 effort); ``ordinary`` is the
+    validating conversion of a deserialized message (it raises ``ValueError`` with the reason
+    for an invalid one) and ``allow_extra`` whether names that are not controlled may appear.
+    A message with the layout of the last valid one is read in place; its values are still
+    checked for non-finite numbers (then the ordinary conversion reports it).
+    """
+
+    def __init__(
+        self,
+        order: JointOrder,
+        fields: tuple[int, ...],
+        ordinary: Callable[[JointState], tuple[np.ndarray, ...]],
+        allow_extra: bool,
+    ) -> None:
+        self._order = order
+        self._fields = fields
+        self._ordinary = ordinary
+        self._allow_extra = allow_extra
+        self._image: JointStateImage | None = None
+        self._base = 0  # offset of the first requested value
+        self._span = 0  # float64 slots from there to the last requested value
+        self._index: np.ndarray | None = None  # slots of the requested values, in order
+
+    def read(self, raw: bytes) -> tuple[int, tuple[np.ndarray, ...]]:
+        """(stamp [ns], arrays in the controlled-joint order); raises ``ValueError``."""
+        image = self._image
+        if image is not None and image.matches(raw):
+            values = np.frombuffer(raw, _F8, count=self._span, offset=self._base)[self._index]
+            if np.isfinite(values).all():
+                return JointStateImage.stamp(raw), tuple(values.reshape(len(self._fields), -1))
+        msg = deserialize_message(raw, JointState)
+        arrays = self._ordinary(msg)
+        self._learn(msg)
+        stamp = msg.header.stamp
+        return stamp.sec * 1_000_000_000 + stamp.nanosec, arrays
+
+    def _learn(self, msg: JointState) -> None:
+        """Read the next messages of this layout in place."""
+        image = JointStateImage.like(msg)
+        joints = self._order.index(msg.name, allow_extra=self._allow_extra)
+        offsets = [image.offsets[f] for f in self._fields]
+        self._base = min(offsets)
+        slots = [(offset - self._base) // 8 + joints for offset in offsets]
+        self._index = np.concatenate(slots)
+        self._span = int(self._index.max()) + 1
+        self._image = image
