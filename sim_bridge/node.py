@@ -37,8 +37,6 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from joint_space_control.arrays import nonnegative, per_joint
-from joint_space_control.model.dynamics import RobotModel
-from joint_space_control.model.robots import resolve_robot
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.messages import (
     CONTROL_QOS,
@@ -53,14 +51,7 @@ from sim_bridge.plant import Plant
 
 MODES = ("realtime", "lockstep")
 
-PARAMETERS = (
-    params.ParamSpec(
-        "robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda", read_only=True
-    ),
-    params.ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
-    params.ParamSpec(
-        "joints", [], "Controlled joints (default: the robot's)", read_only=True, dynamic=True
-    ),
+PARAMETERS = params.ROBOT_PARAMETERS + (
     params.ParamSpec("mode", "realtime", "realtime | lockstep", read_only=True),
     params.ParamSpec(
         "physics_rate",
@@ -118,8 +109,8 @@ class SimBridge(Node):
         super().__init__("sim_bridge", **kwargs)
         params.declare(self, PARAMETERS)
         v = params.current_values(self, PARAMETERS)
-        spec = resolve_robot(v["robot"] if not v["urdf_path"] else "", v["urdf_path"])
-        model = RobotModel(spec, params.names(v, "joints") or None)
+        model = params.robot_model(v)
+        spec = model.spec
         self.joints = model.joint_names
         self.n = len(self.joints)
         self.mode = params.choice(v, "mode", MODES)

@@ -24,7 +24,6 @@ from trajectory_msgs.msg import JointTrajectory
 
 from joint_space_control.laws.split import TorqueSplit
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
-from joint_space_control.model.robots import resolve_robot
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.messages import (
     CONFIG_QOS,
@@ -44,18 +43,7 @@ TRIGGERS = ("timer", "state")
 #: Longest time step integrated at once [s]; longer gaps (start-up, pauses) are cut.
 MAX_DT = 0.1
 
-COMMON_PARAMETERS = (
-    params.ParamSpec(
-        "robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda", read_only=True
-    ),
-    params.ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
-    params.ParamSpec(
-        "joints",
-        [],
-        "Controlled joints in command order (default: the robot's)",
-        read_only=True,
-        dynamic=True,
-    ),
+COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
     params.ParamSpec("rate", 1000.0, "Control rate [Hz] with trigger=timer, > 0", read_only=True),
     params.ParamSpec(
         "trigger",
@@ -133,11 +121,9 @@ class JointController(Node):
         self._specs = COMMON_PARAMETERS + self.LAW_PARAMETERS
         params.declare(self, self._specs)
         values = params.current_values(self, self._specs)
-        spec = resolve_robot(
-            values["robot"] if not values["urdf_path"] else "", values["urdf_path"]
-        )
         self._perturbation = model_perturbation(values)
-        self.model = RobotModel(spec, params.names(values, "joints") or None, self._perturbation)
+        self.model = params.robot_model(values, self._perturbation)
+        spec = self.model.spec
         self.joints = self.model.joint_names
         self.n = len(self.joints)
         self.effort_limits = self.model.effort_limits

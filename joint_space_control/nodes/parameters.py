@@ -10,6 +10,9 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.model.robots import resolve_robot
+
 
 @dataclass(frozen=True)
 class ParamSpec:
@@ -99,3 +102,27 @@ def nonnegative_number(values: Mapping[str, Any], name: str) -> float:
     if not np.isfinite(value):
         raise ValueError(f"'{name}' must be finite")
     return float(value)
+
+
+#: What every node takes to know its robot (INTERFACES.md): a built-in robot or any URDF, and
+#: the joints in the node's order.
+ROBOT_PARAMETERS = (
+    ParamSpec(
+        "robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda", read_only=True
+    ),
+    ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
+    ParamSpec(
+        "joints",
+        [],
+        "Joints in the node's order (default: the robot's actuated joints)",
+        read_only=True,
+        dynamic=True,
+    ),
+)
+
+
+def robot_model(values: Mapping[str, Any], perturbation: Any = None) -> RobotModel:
+    """The model of the robot named by ``robot``/``urdf_path``, for the ``joints`` given."""
+    urdf = values["urdf_path"]
+    spec = resolve_robot(values["robot"] if not urdf else "", urdf)
+    return RobotModel(spec, names(values, "joints") or None, perturbation)

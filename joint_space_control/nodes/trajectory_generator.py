@@ -64,8 +64,6 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from joint_space_control.arrays import per_joint
-from joint_space_control.model.dynamics import RobotModel
-from joint_space_control.model.robots import resolve_robot
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.messages import (
     CONTROL_QOS,
@@ -85,18 +83,7 @@ JOINT_STATE_TIMEOUT = 2.0
 #: before /clock does.
 STARTUP_POLL = 0.05
 
-PARAMETERS = (
-    params.ParamSpec(
-        "robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda", read_only=True
-    ),
-    params.ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
-    params.ParamSpec(
-        "joints",
-        [],
-        "Joints of the reference, in order (default: the robot's)",
-        read_only=True,
-        dynamic=True,
-    ),
+PARAMETERS = params.ROBOT_PARAMETERS + (
     params.ParamSpec("shape", "step", "step | sinusoid | quintic | waypoints"),
     params.ParamSpec(
         "target",
@@ -312,10 +299,7 @@ class TrajectoryGenerator(Node):
         super().__init__("trajectory_generator", **kwargs)
         params.declare(self, PARAMETERS)
         values = params.current_values(self, PARAMETERS)
-        spec = resolve_robot(
-            values["robot"] if not values["urdf_path"] else "", values["urdf_path"]
-        )
-        model = RobotModel(spec, params.names(values, "joints") or None)
+        model = params.robot_model(values)
         self.joints = model.joint_names
         self.n = len(self.joints)
         self._lower, self._upper = model.position_limits
@@ -334,7 +318,7 @@ class TrajectoryGenerator(Node):
                 STARTUP_POLL, self._on_startup_poll, clock=Clock(clock_type=ClockType.STEADY_TIME)
             )
         self.get_logger().info(
-            f"trajectory_generator: {spec.name}, joints {list(self.joints)}, "
+            f"trajectory_generator: {model.spec.name}, joints {list(self.joints)}, "
             f"shape={self.config.shape}"
             + (", publishing on start" if values["publish_on_start"] else "")
         )
