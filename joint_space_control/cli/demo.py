@@ -39,12 +39,11 @@ def run(out: Path, duration: float, domain_id: int | None) -> int:
             domain_id,
             "planar_2dof",
             controller_params=_params("pd_gravity_controller.yaml"),
-            sim_params=_params("sim_bridge.yaml"),
+            sim_params={**_params("sim_bridge.yaml"), "pause_at": duration},  # exact end
             record=bag,
         ) as loop:
             loop.start(JOINTS, [SETPOINT])
-            loop.run_until(duration)
-            loop.pause()
+            loop.hold_at(duration)
             _, q, _, _ = loop.probe.recording.arrays()
     except (RuntimeError, TimeoutError) as err:
         print(f"jsc demo failed: {err}\nnode logs: {out / 'logs'}", file=sys.stderr)
