@@ -19,10 +19,10 @@ class DomainLease:
         self._handle = handle
 
     def release(self) -> None:
-        if self._handle is not None:
-            fcntl.flock(self._handle, fcntl.LOCK_UN)
-            self._handle.close()
-            self._handle = None
+        """Give the domain back (idempotent, also from another thread)."""
+        handle, self._handle = self._handle, None
+        if handle is not None:
+            handle.close()  # closing the file drops its lock
 
     def __enter__(self) -> DomainLease:
         return self

@@ -7,6 +7,7 @@ resumed. Same inputs therefore give the same run, however loaded the machine is.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -37,6 +38,7 @@ class ClosedLoop:
         self.controller = controller
         self.bag = record
         self._lease = None
+        self._closing = threading.Lock()
         if domain_id is None:  # one no other run on this machine uses
             self._lease = lease_domain()
             domain_id = self._lease.domain_id
@@ -109,12 +111,14 @@ class ClosedLoop:
         return q[-1], dq[-1]
 
     def close(self) -> None:
-        if self.probe is not None:
-            self.probe.close()
-            self.probe = None
-        self.group.stop_all()
-        if self._lease is not None:
-            self._lease.release()
+        """Stop everything (idempotent; Ctrl-C may close a loop from another thread)."""
+        with self._closing:
+            probe, self.probe = self.probe, None
+            if probe is not None:
+                probe.close()
+            self.group.stop_all()
+            if self._lease is not None:
+                self._lease.release()
 
     def __enter__(self) -> ClosedLoop:
         return self
