@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -69,3 +71,32 @@ def test_every_scenario_runs_in_its_short_form(tmp_path):
     for link in [line for line in page.splitlines() if line.startswith("![")]:
         target = link[link.index("](") + 2 : -1]
         assert (docs / target).is_file(), target
+
+
+def test_ctrl_c_stops_every_node_of_a_running_experiment(tmp_path):
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    cmd = [sys.executable, "-m", "joint_space_control.cli.main", "experiment"]
+    proc = subprocess.Popen(
+        [*cmd, "q4_sinusoid_tracking", "--out", str(tmp_path)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not list(tmp_path.glob("q4_sinusoid_tracking/*/bag/*.mcap")):
+            assert proc.poll() is None and time.monotonic() < deadline, "no run started"
+            time.sleep(0.2)
+        time.sleep(2.0)  # running
+        proc.send_signal(signal.SIGINT)
+        output, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, output
+    assert "interrupted" in output
+    leftovers = subprocess.run(
+        ["pgrep", "-f", str(tmp_path)], capture_output=True, text=True
+    ).stdout.split()
+    assert leftovers == [], f"node processes still running: {leftovers}"
