@@ -75,6 +75,7 @@ class RobotModel:
         self.friction = per_joint(pert.friction, self.n, "friction")
         if np.any(self.friction < 0):
             raise ValueError("friction must be >= 0")
+        self._has_friction = bool(np.any(self.friction))
 
     # -- limits ----------------------------------------------------------------------
     @property
@@ -109,6 +110,13 @@ class RobotModel:
             qc[self._iq_cont + 1] = np.sin(angles)
         return qc
 
+    # The methods below run in every control tick: Pinocchio's own work is a few µs, so the
+    # conversions around it are kept to what the joint order needs. Pinocchio returns fresh
+    # arrays (they do not alias ``data``), which are handed out as they are.
+    def _q(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`configuration` without a copy when the coordinates are Pinocchio's own."""
+        return np.asarray(q, dtype=float) if self._q_plain else self.configuration(q)
+
     def _v(self, x: np.ndarray) -> np.ndarray:
         """Joint-order vector → Pinocchio velocity order."""
         if self._identity:
@@ -118,34 +126,36 @@ class RobotModel:
         return out
 
     def _out(self, x: np.ndarray) -> np.ndarray:
-        """Pinocchio velocity order → joint order (always a fresh array)."""
-        return np.array(x[self._iv], dtype=float)
+        """Pinocchio velocity order → joint order (a fresh array from Pinocchio's)."""
+        return x if self._identity else x[self._iv]
+
+    def _plus_friction(self, x: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        return x + self.friction * dq if self._has_friction else x
 
     def inertia(self, q: np.ndarray) -> np.ndarray:
         """B(q) [kg·m²], symmetric positive definite (crba fills the upper triangle)."""
-        upper = pin.crba(self.model, self.data, self.configuration(q))
-        full = np.triu(upper) + np.triu(upper, 1).T
-        return full[np.ix_(self._iv, self._iv)]
+        upper = pin.crba(self.model, self.data, self._q(q))
+        full = np.where(self._strictly_lower, upper.T, upper)
+        return full if self._identity else full[self._iv_grid]
 
     def coriolis(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """C(q, q̇) such that Ḃ − 2C is skew-symmetric [N·m·s]."""
-        c = pin.computeCoriolisMatrix(self.model, self.data, self.configuration(q), self._v(dq))
-        return np.array(c[np.ix_(self._iv, self._iv)])
+        c = pin.computeCoriolisMatrix(self.model, self.data, self._q(q), self._v(dq))
+        return c if self._identity else c[self._iv_grid]
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
         """g(q) = ∂U/∂q [N·m]."""
-        g = pin.computeGeneralizedGravity(self.model, self.data, self.configuration(q))
-        return self._out(g)
+        return self._out(pin.computeGeneralizedGravity(self.model, self.data, self._q(q)))
 
     def nonlinear_effects(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """n(q, q̇) = C(q, q̇) q̇ + F q̇ + g(q) [N·m]."""
-        nle = pin.nonLinearEffects(self.model, self.data, self.configuration(q), self._v(dq))
-        return self._out(nle) + self.friction * dq
+        nle = pin.nonLinearEffects(self.model, self.data, self._q(q), self._v(dq))
+        return self._plus_friction(self._out(nle), dq)
 
     def rnea(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
         """Inverse dynamics τ = B(q) q̈ + C(q, q̇) q̇ + F q̇ + g(q) [N·m]."""
-        tau = pin.rnea(self.model, self.data, self.configuration(q), self._v(dq), self._v(ddq))
-        return self._out(tau) + self.friction * dq
+        tau = pin.rnea(self.model, self.data, self._q(q), self._v(dq), self._v(ddq))
+        return self._plus_friction(self._out(tau), dq)
 
     # -- construction helpers --------------------------------------------------------
     def _apply_perturbation(self, pert: ModelPerturbation) -> None:
@@ -188,6 +198,15 @@ class RobotModel:
         self._iq_simple = np.array([joints[i].idx_q for i in self._simple], dtype=int)
         self._iq_cont = np.array([joints[i].idx_q for i in self._cont], dtype=int)
         self._has_continuous = self._cont.size > 0
+        # Pinocchio's configuration is the joint vector itself (no continuous joint, same
+        # order): the common case, where q goes to Pinocchio as it is.
+        self._q_plain = (
+            not self._has_continuous
+            and self.model.nq == self.n
+            and np.array_equal(self._iq_simple, np.arange(self.n))
+        )
+        self._iv_grid = np.ix_(self._iv, self._iv)
+        self._strictly_lower = np.tri(self.n, k=-1, dtype=bool)
 
 
 def _check_joint_names(joints: Sequence[str], full: pin.Model, urdf: Path) -> tuple[str, ...]:
