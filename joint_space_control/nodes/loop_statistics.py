@@ -74,27 +74,31 @@ class _Histogram:
         if values_us.size == 0:
             return
         idx = np.minimum(np.floor(values_us), self.counts.size - 1).astype(np.int64)
-        self.counts += np.bincount(idx, minlength=self.counts.size)
+        counts = np.bincount(idx)  # as long as the largest value: short, no 50 000-bin array
+        self.counts[: counts.size] += counts
         self.n += values_us.size
         self.sum += float(values_us.sum())
         self.max = max(self.max, float(values_us.max()))
 
-    def percentile(self, percent: float) -> float:
-        """The 1 µs bin (lower edge) of the nearest-rank sample; ``max`` when it overflowed."""
+    def stats(self, names: tuple[str, ...]) -> list[float]:
+        """``mean``, ``max`` and ``pNN`` (the 1 µs bin, lower edge, of the nearest-rank
+        sample; ``max`` when it overflowed), NaN without samples."""
         if self.n == 0:
-            return math.nan
-        rank = max(1, math.ceil(percent / 100.0 * self.n))
-        b = int(np.searchsorted(np.cumsum(self.counts), rank))
-        return self.max if b == self.counts.size - 1 else float(b)
-
-    def stat(self, name: str) -> float:
-        if self.n == 0:
-            return math.nan
-        if name == "mean":
-            return self.sum / self.n
-        if name == "max":
-            return self.max
-        return self.percentile(float(name[1:]))
+            return [math.nan] * len(names)
+        cumulative = None
+        out = []
+        for name in names:
+            if name == "mean":
+                out.append(self.sum / self.n)
+            elif name == "max":
+                out.append(self.max)
+            else:
+                if cumulative is None:
+                    cumulative = np.cumsum(self.counts)
+                rank = max(1, math.ceil(float(name[1:]) / 100.0 * self.n))
+                b = int(np.searchsorted(cumulative, rank))
+                out.append(self.max if b == self.counts.size - 1 else float(b))
+        return out
 
 
 class LoopStatistics:
@@ -206,8 +210,8 @@ class LoopStatistics:
         out["total.seconds"] = total_seconds
         out["total.rate_hz"] = self._taken / total_seconds if total_seconds > 0 else math.nan
         for metric, stats in METRICS.items():
-            for stat in stats:
-                out[f"total.{metric}.{stat}_us"] = self._histograms[metric].stat(stat)
+            for stat, value in zip(stats, self._histograms[metric].stats(stats), strict=True):
+                out[f"total.{metric}.{stat}_us"] = value
         out["total.late"], out["total.too_late"] = self._late_total, self._too_late_total
         return out
 
