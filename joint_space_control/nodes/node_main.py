@@ -7,13 +7,18 @@ from collections.abc import Callable
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+
+from joint_space_control.nodes.control_path import spin_node
 
 
 def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None:
     """Create the node and spin it until Ctrl-C or SIGTERM (both shut rclpy down cleanly).
+
+    A node with a ``control_path`` (:class:`~joint_space_control.nodes.control_path.ControlPath`)
+    has it served in this thread and everything else by an executor in a second thread.
 
     A configuration error (unknown robot, invalid parameter at start-up) is reported on one
     line and ends the process with exit code 2 instead of a traceback.
@@ -26,9 +31,7 @@ def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None
         except (ValueError, ParameterException) as err:
             print(f"error: {err}", file=sys.stderr)
             sys.exit(2)
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        executor.spin()
+        spin_node(node, getattr(node, "control_path", None))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except _rclpy.RCLError:

@@ -1,0 +1,281 @@
+"""A dedicated wait-set loop for a node's control path, next to a standard executor.
+
+rclpy's ``SingleThreadedExecutor`` rebuilds its wait set in Python at every wake-up: every
+subscription, service, timer and QoS event handler of the node (the six parameter services
+included) goes through callback-group checks and context managers, then the ready entity is
+wrapped in a task. For a node that answers a joint state once per millisecond that is most
+of the CPU time of a tick (profiled: ~0.6 ms per wake-up on this machine, more than the
+control law, the message conversion and the publishing together). ``rclpy.experimental``'s
+EventsExecutor avoids it, but in this rclpy (7.1) its ``spin()`` neither serves services nor
+stops on a signal.
+
+So the few entities of the control path (subscriptions in a fixed priority order and at most
+one timer) are served by :meth:`ControlPath.spin`: one rcl wait set that holds exactly them
+and the signal guard condition, built once and refilled in C at each wait, ready entities
+taken and called directly. Everything else of the node (parameter services, services, other
+timers, ``/clock`` with ``use_sim_time``, QoS events of the publishers) stays with a standard
+executor spun in a second thread; it sleeps in ``rcl_wait`` (the GIL released) until one of
+those rare events.
+The control-path entities belong to :class:`ControlPathGroup`, which the rclpy executors
+never execute.
+
+A callback receives ``(message, info)``: ``info`` is the rmw message info (``source_timestamp``,
+``received_timestamp`` [ns, system clock]) for subscriptions and None for the timer.
+"""
+
+from __future__ import annotations
+
+import gc
+import sys
+import threading
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass
+from typing import Any
+
+from rclpy.callback_groups import CallbackGroup
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.guard_condition import GuardCondition
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.signals import SignalHandlerGuardCondition
+from rclpy.subscription import Subscription
+from rclpy.timer import Timer
+
+#: Longest wait [ns] before the loop looks at the context again (a signal wakes it at once).
+_WAIT_NS = 200_000_000
+#: Python's GIL switch interval [s] in a process with a control path.
+SWITCH_INTERVAL = 0.0005
+
+
+class ControlPathGroup(CallbackGroup):
+    """Entities served by a :class:`ControlPath`: the rclpy executors leave them alone."""
+
+    def can_execute(self, entity: Any) -> bool:
+        return False
+
+    def beginning_execution(self, entity: Any) -> bool:
+        return False
+
+    def ending_execution(self, entity: Any) -> None:
+        pass
+
+
+@dataclass(frozen=True)
+class _Mode:
+    """How :meth:`ControlPath._serve` waits and when it returns."""
+
+    timeout_ns: int = _WAIT_NS  # longest wait
+    until_ns: int | None = None  # hand out only messages received before (system clock)
+    until_idle: bool = False  # return after a wait that brings nothing
+    once: bool = False  # return after one wait
+
+
+@dataclass(frozen=True)
+class _Entry:
+    sub: Subscription
+    callback: Callable[[Any, Any], None]
+    drain: bool
+
+
+class ControlPath:
+    """The control-path entities of one node and the loop that serves them.
+
+    Subscriptions may be added and removed while the loop runs (from another thread: the
+    loop rebuilds its wait set before its next wait)."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        self.group = ControlPathGroup()
+        self._subscriptions: list[_Entry] = []
+        self._timer: tuple[Timer, Callable[[], None]] | None = None
+        self._version = 0  # bumped on every change of the entities
+        self._stop = False
+        self._wake = GuardCondition(None, None, context=node.context)
+
+    def __bool__(self) -> bool:
+        return bool(self._subscriptions or self._timer)
+
+    def subscription(
+        self,
+        msg_type: Any,
+        topic: str,
+        callback: Callable[[Any, Any], None],
+        qos: QoSProfile,
+        raw: bool = False,
+        drain: bool = False,
+    ) -> Subscription:
+        """A subscription of the control path; taken in the order of creation when several
+        are ready. ``callback(message, info)``; ``raw`` delivers the serialized bytes;
+        ``drain`` takes every queued message at each wake-up (not just one)."""
+        # Without QoS event handlers: rmw_fastrtps wakes every wait set that holds one of a
+        # subscription's events on each of its messages, so handlers served by the executor
+        # would cost a full executor wake-up per message (measured: ~1 ms of CPU). A
+        # publisher with an incompatible QoS still hears about it on its side.
+        sub = self.node.create_subscription(
+            msg_type,
+            topic,
+            callback,
+            qos,
+            callback_group=self.group,
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+            raw=raw,
+        )
+        self._subscriptions = [*self._subscriptions, _Entry(sub, callback, drain)]
+        self._changed()
+        return sub
+
+    def destroy_subscription(self, sub: Subscription) -> None:
+        """Remove a subscription of the control path and destroy it (rclpy defers that
+        until the loop has let go of it)."""
+        self._subscriptions = [e for e in self._subscriptions if e.sub is not sub]
+        self._changed()
+        self.node.destroy_subscription(sub)
+
+    def timer(self, period: float, callback: Callable[[], None]) -> Timer:
+        """The control path's timer (the node clock: simulation time with use_sim_time)."""
+        if self._timer is not None:
+            raise ValueError("a control path has at most one timer")
+        timer = self.node.create_timer(period, callback, callback_group=self.group)
+        self._timer = (timer, callback)
+        self._changed()
+        return timer
+
+    def _changed(self) -> None:
+        self._version += 1
+        self._wake.trigger()
+
+    def stop(self) -> None:
+        """Make :meth:`spin` return (from another thread or a signal handler)."""
+        self._stop = True
+        self._wake.trigger()
+
+    def spin(self) -> None:
+        """Serve the control path until the context shuts down (Ctrl-C, SIGTERM) or
+        :meth:`stop`. Exceptions of the callbacks propagate."""
+        self._serve(_Mode())
+
+    def spin_once(self, timeout: float) -> int:
+        """One wait of at most ``timeout`` seconds, then everything ready handed out (for a
+        client that runs its own loop); returns the number of messages."""
+        return self._serve(_Mode(timeout_ns=round(timeout * 1e9), once=True))
+
+    def drain(self, idle: float, received_before_ns: int) -> None:
+        """After :meth:`stop`, before closing: hand out what the subscriptions still hold
+        that was received before ``received_before_ns`` (system clock), until a wait of
+        ``idle`` seconds brings no such message; later messages are dropped."""
+        self._stop = False
+        self._serve(_Mode(round(idle * 1e9), received_before_ns, until_idle=True))
+
+    def _serve(self, mode: _Mode) -> int:
+        """Wait and hand out as ``mode`` says, rebuilding the wait set whenever the entities
+        change; returns the number of messages handed out."""
+        context = self.node.context
+        sigint = SignalHandlerGuardCondition(context)
+        count = 0
+        try:
+            while not self._stop and context.ok():
+                version = self._version
+                entries, timer = self._subscriptions, self._timer
+                with ExitStack() as handles:  # keep the rcl handles alive while waiting
+                    for handle in (sigint.handle, self._wake.handle):
+                        handles.enter_context(handle)
+                    for entry in entries:
+                        handles.enter_context(entry.sub.handle)
+                    if timer is not None:
+                        handles.enter_context(timer[0].handle)
+                    done, taken = self._loop(version, entries, timer, sigint, mode)
+                count += taken
+                if done:
+                    break
+        finally:
+            sigint.destroy()
+        return count
+
+    def _loop(
+        self,
+        version: int,
+        entries: list[_Entry],
+        timer: tuple[Timer, Callable[[], None]] | None,
+        sigint: GuardCondition,
+        mode: _Mode,
+    ) -> tuple[bool, int]:
+        """Wait and take until the entities change ((False, n)) or ``mode`` is done
+        ((True, n)); n messages were handed out."""
+        context = self.node.context
+        subs = [(e.sub.handle, e.sub.msg_type, e.sub.raw, e.callback, e.drain) for e in entries]
+        wait_set = _rclpy.WaitSet(len(subs), 2, 0 if timer is None else 1, 0, 0, 0, context.handle)
+        timer_handle = None if timer is None else timer[0].handle
+        add_sub, ready = wait_set.add_subscription, wait_set.is_ready
+        until_ns = mode.until_ns
+        count = 0
+        while not self._stop and context.ok() and version == self._version:
+            wait_set.clear_entities()
+            for handle, *_ in subs:
+                add_sub(handle)
+            wait_set.add_guard_condition(sigint.handle)
+            wait_set.add_guard_condition(self._wake.handle)
+            if timer_handle is not None:
+                wait_set.add_timer(timer_handle)
+            wait_set.wait(mode.timeout_ns)
+            taken_any = False
+            for k, (handle, msg_type, raw, callback, all_queued) in enumerate(subs):
+                if ready("subscription", k):
+                    taken = handle.take_message(msg_type, raw)
+                    while taken is not None:
+                        if until_ns is None or taken[1]["received_timestamp"] <= until_ns:
+                            taken_any = True
+                            count += 1
+                            callback(*taken)
+                        taken = handle.take_message(msg_type, raw) if all_queued else None
+            if timer_handle is not None and ready("timer", 0):
+                if timer_handle.is_timer_ready():
+                    timer_handle.call_timer()
+                    timer[1]()
+            if mode.once:
+                return True, count
+            woken = ready("guard_condition", 0) or ready("guard_condition", 1)
+            if mode.until_idle and not taken_any and not woken:
+                return True, count
+        return False, count
+
+
+def spin_node(node: Node, control_path: ControlPath | None) -> None:
+    """Spin ``node``: its control path (if any, even one still empty) in this thread and the
+    rest in a standard executor in a second thread; only the executor without one. Returns
+    when the context shuts down or the control path is stopped."""
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    if control_path is None:
+        executor.spin()
+        return
+    # A thread that wants the GIL asks its holder to let go after this long (default 5 ms):
+    # the control path must not wait milliseconds behind the executor thread's work.
+    sys.setswitchinterval(SWITCH_INTERVAL)
+    # Everything built so far (modules, the model, the node) lives as long as the process:
+    # out of the garbage collector's sight, a full collection takes microseconds instead of
+    # the ~15 ms that stalled a tick now and then.
+    gc.collect()
+    gc.freeze()
+    failure: list[BaseException] = []
+
+    def spin_rest() -> None:
+        try:
+            executor.spin()
+        except ExternalShutdownException:
+            pass
+        except BaseException as err:  # pragma: no cover - reported by the main thread
+            failure.append(err)
+            control_path.stop()
+
+    thread = threading.Thread(target=spin_rest, name="executor", daemon=True)
+    thread.start()
+    try:
+        control_path.spin()
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        thread.join(timeout=2.0)
+    if failure:
+        raise failure[0]
