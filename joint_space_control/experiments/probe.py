@@ -13,7 +13,8 @@ from typing import Any
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Duration
-from rclpy.executors import SingleThreadedExecutor
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.executors import ShutdownException, SingleThreadedExecutor, TimeoutException
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -21,8 +22,12 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from joint_space_control.nodes.control_path import ControlPath
+from joint_space_control.nodes.diagnostics import DIAGNOSTICS_QOS, statuses
 from joint_space_control.nodes.messages import REFERENCE_QOS, stamp_to_ns
 
+#: Longest wait [s] for a joint state or command before the probe serves the rest.
+OBSERVED_WAIT = 0.005
 RECORD_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10000, reliability=ReliabilityPolicy.RELIABLE
 )
@@ -61,20 +66,26 @@ class LoopProbe:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.recording = Recording()
-        self.node.create_subscription(JointState, "joint_states", self._on_state, RECORD_QOS)
+        # The loop's own topics are taken by a dedicated wait-set loop: through the executor
+        # (a wait-set rebuild per message) the probe falls behind a lockstep loop that runs
+        # faster than real time. One message per topic and wait, as an executor takes them,
+        # so that run_until() stops at the first state at or after its time.
+        self._observed = ControlPath(self.node)
+        self._observed.subscription(JointState, "joint_states", self._on_state, RECORD_QOS)
         self.answered_ns = -1  # newest stamp answered on effort_command
-        self.node.create_subscription(JointState, "effort_command", self._on_command, RECORD_QOS)
+        self._observed.subscription(JointState, "effort_command", self._on_command, RECORD_QOS)
         self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
         self._param_clients: dict[str, AsyncParameterClient] = {}
+        self._diagnostics: dict[str, dict[str, float | str]] | None = None
 
-    def _on_state(self, msg: JointState) -> None:
+    def _on_state(self, msg: JointState, info: object = None) -> None:
         rec = self.recording
         rec.stamps.append(stamp_to_ns(msg.header.stamp))
         rec.positions.append(list(msg.position))
         rec.velocities.append(list(msg.velocity))
         rec.efforts.append(list(msg.effort))
 
-    def _on_command(self, msg: JointState) -> None:
+    def _on_command(self, msg: JointState, info: object = None) -> None:
         self.answered_ns = max(self.answered_ns, stamp_to_ns(msg.header.stamp))
 
     # -- spinning ----------------------------------------------------------------------
@@ -91,7 +102,20 @@ class LoopProbe:
                 raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
             if check is not None:
                 check()
-            self.executor.spin_once(timeout_sec=0.05)
+            self._observed.spin_once(OBSERVED_WAIT)
+            self._serve_rest()
+
+    def _serve_rest(self, limit: int = 1000) -> None:
+        """Whatever the executor has ready (services, parameter clients, diagnostics, the
+        caller's own subscriptions on ``self.node``), all of it, without waiting."""
+        for _ in range(limit):
+            try:
+                handler, _, _ = self.executor.wait_for_ready_callbacks(0)
+            except (TimeoutException, ShutdownException):
+                return
+            handler()
+            if handler.exception() is not None:
+                raise handler.exception()
 
     def latest_time(self) -> float:
         return self.recording.stamps[-1] * 1e-9 if self.recording.stamps else -1.0
@@ -119,6 +143,33 @@ class LoopProbe:
         self.spin_until(
             lambda: self.answered_ns >= stamp_ns, timeout, f"the answer to {stamp_ns} ns", check
         )
+
+    def wait_for_diagnostics(
+        self,
+        names: Sequence[str],
+        until: Callable[[dict[str, dict[str, float | str]]], bool] = lambda latest: True,
+        timeout: float = 20.0,
+        check: Callable[[], None] | None = None,
+    ) -> dict[str, dict[str, float | str]]:
+        """Subscribe to /diagnostics (on first use) and spin until a status has arrived for
+        every name in ``names`` and ``until(latest)`` holds; returns the newest status of
+        each name (:func:`~joint_space_control.nodes.diagnostics.statuses`)."""
+        if self._diagnostics is None:
+            self._diagnostics = {}
+            self.node.create_subscription(
+                DiagnosticArray,
+                "/diagnostics",
+                lambda msg: self._diagnostics.update(statuses(msg)),
+                DIAGNOSTICS_QOS,
+            )
+        latest = self._diagnostics
+        self.spin_until(
+            lambda: all(n in latest for n in names) and until(latest),
+            timeout,
+            f"diagnostics of {list(names)}",
+            check,
+        )
+        return dict(latest)
 
     def wait_for_graph(
         self, timeout: float = 20.0, check: Callable[[], None] | None = None

@@ -11,6 +11,11 @@ publisher with other QoS turns up later.
 Each message is stamped with its receive time in the node clock: the simulation time with
 ``use_sim_time:=true``, else the system time. Ctrl-C and SIGTERM close the bag cleanly (the
 MCAP summary and ``metadata.yaml`` are written).
+
+The recorded subscriptions are served by a dedicated wait-set loop that takes every queued
+message at each wake-up (:class:`~joint_space_control.nodes.control_path.ControlPath`): a
+standard executor rebuilds its wait set per message, which caps a recorder at a few thousand
+messages per second, less than a lockstep loop produces.
 """
 
 from __future__ import annotations
@@ -25,7 +30,6 @@ from typing import Any
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -34,12 +38,14 @@ from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, Qo
 from rosbags.interfaces import QosTime as BagQosTime
 
 from joint_space_control.nodes import parameters as params
+from joint_space_control.nodes.control_path import ControlPath, spin_node
 from joint_space_control.recording.bag_writer import STORAGES, BagWriter, RecordedTopic
 from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection
 
 #: Messages a subscription queues while the recorder is busy writing.
 QUEUE_DEPTH = 1000
-#: After a stop signal, the bag is closed once a spin of this long [s] brings no message.
+#: After a stop signal, the bag is closed once a wait of this long [s] brings no message
+#: received before the signal.
 DRAIN_IDLE = 0.05
 
 PARAMETERS = (
@@ -121,6 +127,7 @@ class Recorder(Node):
         self._recording: dict[str, tuple[Subscription, QoSProfile]] = {}
         self._skipped: set[str] = set()
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.control_path = ControlPath(self)
         try:
             self._discover()
             self.create_timer(period, self._discover, clock=self._wall)
@@ -141,7 +148,7 @@ class Recorder(Node):
             if current is not None:
                 if not offered or _same_qos(current[1], qos):
                     continue
-                self.destroy_subscription(current[0])  # a publisher needs other QoS
+                self.control_path.destroy_subscription(current[0])  # a publisher needs other QoS
                 topic = self.bag.topics[name]
             else:
                 msgtype = types[0]
@@ -166,14 +173,16 @@ class Recorder(Node):
         bag = self.bag
         logger = self.get_logger()
 
-        def on_message(raw: bytes) -> None:
+        def on_message(raw: bytes, info: Any) -> None:
             if not bag.write(topic, clock.now().nanoseconds, raw):
                 logger.warning(
                     f"dropped a malformed {topic.msgtype} on {topic.name}",
                     throttle_duration_sec=1.0,
                 )
 
-        sub = self.create_subscription(msg_class, topic.name, on_message, qos, raw=True)
+        sub = self.control_path.subscription(
+            msg_class, topic.name, on_message, qos, raw=True, drain=True
+        )
         self._recording[topic.name] = (sub, qos)
 
     def close(self) -> None:
@@ -206,24 +215,29 @@ def main(args: list[str] | None = None) -> None:
     delivered before the signal are not lost) and close the bag."""
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
+    recorder: list[Recorder] = []
+    stopped_at = [0]  # system clock [ns]: what was received until then is written
+
+    def on_signal(*_: Any) -> None:
+        if not stop.is_set():
+            stopped_at[0] = time.time_ns()
+        stop.set()
+        if recorder:
+            recorder[0].control_path.stop()
+
     for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
+        signal.signal(sig, on_signal)
     try:
         node = Recorder()
     except (ValueError, ParameterException) as err:
         print(f"error: {err}", file=sys.stderr)
         rclpy.try_shutdown()
         sys.exit(2)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
+    recorder.append(node)
     try:
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.1)
-        while True:  # drain: until a spin writes nothing more
-            before = node.bag.message_count
-            executor.spin_once(timeout_sec=DRAIN_IDLE)
-            if node.bag.message_count == before:
-                break
+        if not stop.is_set():
+            spin_node(node, node.control_path)  # until a signal stops the control path
+        node.control_path.drain(DRAIN_IDLE, stopped_at[0])
     finally:
         node.close()
         node.destroy_node()
