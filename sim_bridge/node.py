@@ -19,12 +19,22 @@ time does not advance without a command, so there is nothing to time out.
 
 Services: ``~/reset`` (initial configuration, at rest; time keeps running forward),
 ``~/pause`` and ``~/resume`` (std_srvs/Trigger).
+
+Loop statistics go to ``/diagnostics`` once a second: per lockstep step or realtime physics
+tick, the period, the work of the tick, the lateness against the wall-clock schedule
+(realtime) and the latency from publishing a state to receiving the command that answers it.
+Commands are served by a dedicated wait-set loop and states are published as serialized
+images (:mod:`joint_space_control.nodes.control_path`, :mod:`joint_space_control.nodes.wire`);
+services, parameters and the republish timer run in a second thread, the realtime physics in
+a third, all under one lock.
 """
 
 from __future__ import annotations
 
+import array
 import threading
 import time
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -38,18 +48,26 @@ from std_srvs.srv import Trigger
 
 from joint_space_control.arrays import nonnegative, per_joint
 from joint_space_control.nodes import parameters as params
+from joint_space_control.nodes.control_path import ControlPath
+from joint_space_control.nodes.diagnostics import LoopDiagnostics
+from joint_space_control.nodes.loop_statistics import LoopStatistics
 from joint_space_control.nodes.messages import (
+    CONTROL_PUBLISHER_QOS,
     CONTROL_QOS,
     JointOrder,
     effort_arrays,
     float_array,
-    make_joint_state,
-    stamp_to_ns,
 )
 from joint_space_control.nodes.node_main import run_node
+from joint_space_control.nodes.wire import JointStateImage, JointStateReader
+from sim_bridge import pacing
 from sim_bridge.plant import Plant
 
 MODES = ("realtime", "lockstep")
+#: Recent states whose publication time is kept for the command latency (realtime).
+SENT_HISTORY = 64
+#: Realtime: a tick this far behind its schedule [ns] resets the schedule (machine stalled).
+MAX_BEHIND_NS = 100_000_000
 
 PARAMETERS = params.ROBOT_PARAMETERS + (
     params.ParamSpec("mode", "realtime", "realtime | lockstep", read_only=True),
@@ -151,13 +169,30 @@ class SimBridge(Node):
         self._pause_at_ns = self._pause_time(v)
         self._braking = True
         self._running = True
+        # Command latency: when each recent state was published (perf_counter ns).
+        self._sent_stamp = array.array("q", [-1] * SENT_HISTORY)
+        self._sent_at = array.array("q", [0] * SENT_HISTORY)
+        self._latency_ns = -1  # realtime: of the newest command, for the next tick's row
+        self.loop_stats = LoopStatistics()
+        self._tick_sim_ns = self.period_ns if self.mode == "lockstep" else self.physics_dt_ns
 
-        self._state_msg = make_joint_state(self.joints)
+        self._state_image = JointStateImage(self.joints)
         self._clock_msg = Clock()
-        self._state_pub = self.create_publisher(JointState, "joint_states", CONTROL_QOS)
-        self._clock_pub = self.create_publisher(Clock, "/clock", CONTROL_QOS)
-        self.create_subscription(JointState, "effort_command", self._on_effort, CONTROL_QOS)
-        self.create_subscription(Float64MultiArray, "~/commands", self._on_array, CONTROL_QOS)
+        self._effort_reader = JointStateReader(
+            self._order, (2,), lambda m: (effort_arrays(m, self._order),), allow_extra=False
+        )
+        self._state_pub = self.create_publisher(JointState, "joint_states", CONTROL_PUBLISHER_QOS)
+        self._clock_pub = self.create_publisher(Clock, "/clock", CONTROL_PUBLISHER_QOS)
+        self.control_path = ControlPath(self)
+        self.control_path.subscription(
+            JointState, "effort_command", self._on_effort, CONTROL_QOS, raw=True
+        )
+        self.control_path.subscription(
+            Float64MultiArray, "~/commands", self._on_array, CONTROL_QOS
+        )
+        self._diagnostics = LoopDiagnostics(
+            self, self.loop_stats, spec.name, self._diagnostic_values
+        )
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(Trigger, "~/pause", self._on_pause)
         self.create_service(Trigger, "~/resume", self._on_resume)
@@ -203,20 +238,30 @@ class SimBridge(Node):
         value = params.nonnegative_number(values, "pause_at")
         return round(value * 1e9) if value > 0 else None
 
+    def _diagnostic_values(self, summary: Mapping[str, float]) -> dict[str, Any]:
+        return {
+            "mode": self.mode,
+            "sim_time_s": self._t_ns * 1e-9,
+            "real_time_factor": summary["rate_hz"] * self._tick_sim_ns * 1e-9,
+        }
+
     # -- publishing --------------------------------------------------------------------
     def _publish_state(self) -> None:
-        state = self.plant.state()
-        msg = self._state_msg
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(self._t_ns, 1_000_000_000)
-        msg.position = state.q.tolist()
-        msg.velocity = state.dq.tolist()
-        msg.effort = state.effort.tolist()
-        self._clock_msg.clock = msg.header.stamp
-        self._clock_pub.publish(self._clock_msg)
+        """Publish /clock and the joint state at the current time (with the lock held)."""
+        image = self._state_image
+        self.plant.read_state(image.position, image.velocity, image.effort)
+        image.set_stamp(self._t_ns)
+        if self._clock_pub.get_subscription_count():  # volatile: nobody listening, no loss
+            clock = self._clock_msg.clock
+            clock.sec, clock.nanosec = divmod(self._t_ns, 1_000_000_000)
+            self._clock_pub.publish(self._clock_msg)
         if self.mode == "lockstep":
             self._awaiting = self._t_ns
             self._sent_wall = time.monotonic()
-        self._state_pub.publish(msg)
+        slot = (self._t_ns // self.period_ns) % SENT_HISTORY
+        self._sent_stamp[slot] = self._t_ns
+        self._sent_at[slot] = time.perf_counter_ns()
+        self._state_pub.publish(image.to_bytes())
         if self.mode == "lockstep" and self._pause_at_ns is not None:
             if self._t_ns >= self._pause_at_ns:
                 # Paused with this state out: its answer is ignored; ~/resume sends the
@@ -224,59 +269,83 @@ class SimBridge(Node):
                 self._paused, self._pause_at_ns = True, None
 
     def _republish(self, after: float) -> None:
-        if self._awaiting is not None and not self._paused:
-            if time.monotonic() - self._sent_wall > after:
-                self._publish_state()
+        with self._lock:
+            if self._awaiting is not None and not self._paused:
+                if time.monotonic() - self._sent_wall > after:
+                    self._publish_state()
+
+    def _latency(self, stamp_ns: int, received: int) -> int:
+        """From publishing the state stamped ``stamp_ns`` to ``received`` [ns]; -1 when that
+        state is not among the recent ones."""
+        slot = (stamp_ns // self.period_ns) % SENT_HISTORY
+        if self._sent_stamp[slot] != stamp_ns:
+            return -1
+        return received - self._sent_at[slot]
 
     # -- commands ----------------------------------------------------------------------
-    def _on_effort(self, msg: JointState) -> None:
+    def _on_effort(self, raw: bytes, info: Any) -> None:
+        received = time.perf_counter_ns()
         try:
-            tau = effort_arrays(msg, self._order)
+            stamp, (tau,) = self._effort_reader.read(raw)
         except ValueError as err:
             self.get_logger().warning(f"rejected effort command: {err}", throttle_duration_sec=1.0)
             return
-        self._command(tau, stamp_to_ns(msg.header.stamp))
+        self._command(tau, stamp, received)
 
-    def _on_array(self, msg: Float64MultiArray) -> None:
+    def _on_array(self, msg: Float64MultiArray, info: Any) -> None:
+        received = time.perf_counter_ns()
         try:
             tau = float_array(msg, self.n)
         except ValueError as err:
             self.get_logger().warning(f"rejected command array: {err}", throttle_duration_sec=1.0)
             return
-        self._command(tau, None)
+        self._command(tau, None, received)
 
-    def _command(self, tau: np.ndarray, stamp_ns: int | None) -> None:
-        if self.mode == "realtime":
-            with self._lock:
+    def _command(self, tau: np.ndarray, stamp_ns: int | None, received: int) -> None:
+        with self._lock:
+            if self.mode == "realtime":
                 self._tau, self._tau_t_ns = tau, self._t_ns
-            return
-        if self._paused or self._awaiting is None:
-            return
-        if stamp_ns is not None and stamp_ns != self._awaiting:
-            return  # answers an older state
-        self._awaiting = None
-        self.plant.step(tau, self.substeps)
-        self._t_ns += self.period_ns
-        self._publish_state()
+                if stamp_ns is not None:
+                    self._latency_ns = self._latency(stamp_ns, received)
+                return
+            if self._paused or self._awaiting is None:
+                return
+            if stamp_ns is not None and stamp_ns != self._awaiting:
+                return  # answers an older state
+            answered = self._awaiting
+            self._awaiting = None
+            latency = self._latency(answered, received)
+            self.plant.step(tau, self.substeps)
+            self._t_ns += self.period_ns
+            self._publish_state()
+        self.loop_stats.tick(received, time.perf_counter_ns(), latency, -1, self.period_ns)
 
     # -- realtime ----------------------------------------------------------------------
     def _realtime_loop(self) -> None:
-        dt = self.physics_dt_ns * 1e-9
-        deadline = time.monotonic()
+        """Physics at ``physics_rate`` on the wall clock: tick k starts at t0 + k·dt (or as
+        soon after as the machine allows; a tick more than 100 ms behind restarts the
+        schedule instead of catching up)."""
+        pacing.set_timer_slack(1)
+        dt = self.physics_dt_ns
+        deadline = time.perf_counter_ns()
         k = 0
         while self._running:
+            start = time.perf_counter_ns()
             with self._lock:
-                if not self._paused:
+                ticking = not self._paused
+                if ticking:
                     self._physics_step()
                     k += 1
                     if k % self.substeps == 0:
                         self._publish_state()
+                latency, self._latency_ns = self._latency_ns, -1
+            end = time.perf_counter_ns()
+            if ticking:
+                self.loop_stats.tick(start, end, latency, start - deadline, dt)
             deadline += dt
-            delay = deadline - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            elif delay < -0.1:  # far behind (machine stalled): do not try to catch up
-                deadline = time.monotonic()
+            if end - deadline > MAX_BEHIND_NS:
+                deadline = end
+            pacing.sleep_until(deadline)
 
     def _physics_step(self) -> None:
         fresh = (

@@ -167,6 +167,7 @@ class Plant:
     # -- perturbations -----------------------------------------------------------------
     def set_friction(self, friction: float | Sequence[float]) -> None:
         self.friction = nonnegative(friction, self.n, "viscous_friction")
+        self._has_friction = bool(np.any(self.friction))
 
     def set_payload(self, mass: float) -> None:
         if not np.isfinite(mass) or mass < 0:
@@ -193,10 +194,18 @@ class Plant:
         self._effort = np.zeros(self.n)
 
     def state(self) -> PlantState:
+        q, dq, effort = np.empty(self.n), np.empty(self.n), np.empty(self.n)
+        self.read_state(q, dq, effort)
+        return PlantState(q, dq, effort)
+
+    def read_state(self, q: np.ndarray, dq: np.ndarray, effort: np.ndarray) -> None:
+        """Write the state into the given arrays (the node's message image): no allocation
+        per joint."""
         states = pb.getJointStates(self.body, self._idx, physicsClientId=self.client)
-        q = np.array([s[0] for s in states])
-        dq = np.array([s[1] for s in states])
-        return PlantState(q, dq, self._effort.copy())
+        positions, velocities, _, _ = zip(*states, strict=True)
+        q[:] = positions
+        dq[:] = velocities
+        effort[:] = self._effort
 
     def step(self, tau: np.ndarray, substeps: int = 1) -> None:
         """Hold the motor torque tau (clamped to the effort limits) over ``substeps`` physics
@@ -204,9 +213,9 @@ class Plant:
         tau = np.clip(tau, -self.effort_limits, self.effort_limits)
         c, body, idx = self.client, self.body, self._idx
         for _ in range(substeps):
-            if np.any(self.friction):
-                dq = np.array([s[1] for s in pb.getJointStates(body, idx, physicsClientId=c)])
-                applied = tau - self.friction * dq
+            if self._has_friction:
+                _, dq, _, _ = zip(*pb.getJointStates(body, idx, physicsClientId=c), strict=True)
+                applied = tau - self.friction * np.array(dq)
             else:
                 applied = tau
             pb.setJointMotorControlArray(
@@ -230,8 +239,8 @@ class Plant:
         )
         for _ in range(substeps):
             pb.stepSimulation(physicsClientId=c)
-        states = pb.getJointStates(body, idx, physicsClientId=c)
-        self._effort = np.array([s[3] for s in states])
+        _, _, _, applied = zip(*pb.getJointStates(body, idx, physicsClientId=c), strict=True)
+        self._effort = np.array(applied)
         pb.setJointMotorControlArray(
             body, idx, pb.VELOCITY_CONTROL, forces=[0.0] * self.n, physicsClientId=c
         )

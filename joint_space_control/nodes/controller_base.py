@@ -6,12 +6,19 @@ torque split from the measured state and the reference sample. Everything here i
 handling and bookkeeping; the maths is in :mod:`joint_space_control.laws`.
 
 Topics (relative names): subscribes ``joint_states`` and ``reference``; publishes
-``effort_command``, ``~/state`` (every tick) and ``~/config`` (latched JSON, at start and
-after every accepted parameter change).
+``effort_command``, ``~/state`` (every tick), ``~/config`` (latched JSON, at start and
+after every accepted parameter change) and the loop statistics on ``/diagnostics``.
+
+The control path (references, joint states and the control timer) runs in its own wait-set
+loop (:mod:`~joint_space_control.nodes.control_path`) and publishes serialized images
+(:mod:`~joint_space_control.nodes.wire`); parameters and services are served by a standard
+executor in a second thread. A lock makes parameter updates land between two ticks.
 """
 
 from __future__ import annotations
 
+import threading
+import time
 from typing import Any
 
 import numpy as np
@@ -19,24 +26,28 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
+from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
 from joint_space_control.laws.split import TorqueSplit
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.nodes import parameters as params
+from joint_space_control.nodes.control_path import ControlPath
+from joint_space_control.nodes.diagnostics import LoopDiagnostics
+from joint_space_control.nodes.loop_statistics import LoopStatistics
 from joint_space_control.nodes.messages import (
     CONFIG_QOS,
+    CONTROL_PUBLISHER_QOS,
     CONTROL_QOS,
     REFERENCE_QOS,
+    STATE_FIELDS,
     JointOrder,
     config_message,
     joint_state_arrays,
-    make_joint_state,
-    stamp_to_ns,
     state_message,
     trajectory_from_msg,
 )
+from joint_space_control.nodes.wire import Float64ArrayImage, JointStateImage, JointStateReader
 from joint_space_control.trajectories.reference import Reference, Sample, Trajectory
 
 TRIGGERS = ("timer", "state")
@@ -132,30 +143,48 @@ class JointController(Node):
         self.trigger = params.choice(values, "trigger", TRIGGERS)
         self.config = self.build_config(values, self.model)
         self._state_timeout = params.positive(values, "state_timeout")
+        self._lock = threading.Lock()  # parameter updates wait for the end of a tick
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._order = JointOrder(self.joints)
+        self._reader = JointStateReader(
+            self._order, (0, 1), lambda m: joint_state_arrays(m, self._order), allow_extra=True
+        )
         self._q: np.ndarray | None = None
         self._dq: np.ndarray | None = None
         self._state_ns = -1
+        self._state_sent_ns = -1  # when the newest state was published (system clock)
         self._answered_ns = -1
         self._t_last: float | None = None
         self._reference: Reference | None = None
         self._pending: list[Trajectory] = []
-        self._command = make_joint_state(self.joints)
-        self._state = state_message(self.joints)
+        self._command = JointStateImage(self.joints, (0, 0, self.n))
+        self._command_bytes = b""
+        self._state = Float64ArrayImage(state_message(self.joints), 1 + len(STATE_FIELDS) * self.n)
         self._silent = False
+        self._nominal_ns = round(1e9 / rate) if self.trigger == "timer" else -1
+        self.loop_stats = LoopStatistics()
 
-        self._pub = self.create_publisher(JointState, "effort_command", CONTROL_QOS)
-        self._state_pub = self.create_publisher(type(self._state), "~/state", CONTROL_QOS)
+        self._pub = self.create_publisher(JointState, "effort_command", CONTROL_PUBLISHER_QOS)
+        self._state_pub = self.create_publisher(
+            Float64MultiArray, "~/state", CONTROL_PUBLISHER_QOS
+        )
         self._config_pub = self.create_publisher(String, "~/config", CONFIG_QOS)
         self._publish_config(values)
-        # The reference subscription is created first, so that a reference and a joint state
+        self.control_path = ControlPath(self)
+        # The reference subscription comes first, so that a reference and a joint state
         # that are both waiting are handled in that order (deterministic lockstep start).
-        self.create_subscription(JointTrajectory, "reference", self._on_reference, REFERENCE_QOS)
-        self.create_subscription(JointState, "joint_states", self._on_joint_state, CONTROL_QOS)
+        self.control_path.subscription(
+            JointTrajectory, "reference", self._on_reference, REFERENCE_QOS
+        )
+        self.control_path.subscription(
+            JointState, "joint_states", self._on_joint_state, CONTROL_QOS, raw=True
+        )
         if self.trigger == "timer":
-            self.create_timer(1.0 / rate, self._on_timer)
+            self.control_path.timer(1.0 / rate, self._on_timer)
+        self._diagnostics = LoopDiagnostics(
+            self, self.loop_stats, spec.name, lambda summary: {"trigger": self.trigger}
+        )
         self.get_logger().info(
             f"{node_name}: {spec.name}, joints {list(self.joints)}, trigger={self.trigger}"
             + (f" at {rate:g} Hz" if self.trigger == "timer" else "")
@@ -192,9 +221,10 @@ class JointController(Node):
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
-        self.config = config  # swapped whole; a tick reads it once
-        self.model, self._perturbation = model, model_perturbation(values)
-        self._state_timeout = timeout
+        with self._lock:  # between two ticks
+            self.config = config  # swapped whole; a tick reads it once
+            self.model, self._perturbation = model, model_perturbation(values)
+            self._state_timeout = timeout
         self._publish_config(values)
         self.get_logger().info(
             "parameters updated: " + ", ".join(f"{p.name}={p.value}" for p in changes)
@@ -237,7 +267,7 @@ class JointController(Node):
             return max(self._state_ns, 0) * 1e-9
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _on_reference(self, msg: JointTrajectory) -> None:
+    def _on_reference(self, msg: JointTrajectory, info: Any = None) -> None:
         try:
             traj = trajectory_from_msg(msg, self._order, self._now(), 0)
         except ValueError as err:
@@ -248,26 +278,37 @@ class JointController(Node):
             f"reference accepted: {len(traj.times)} point(s) from t={traj.start:.3f} s"
         )
 
-    def _on_joint_state(self, msg: JointState) -> None:
+    def _on_joint_state(self, raw: bytes, info: dict[str, int]) -> None:
+        start = time.perf_counter_ns()
         try:
-            q, dq = joint_state_arrays(msg, self._order)
+            stamp, (q, dq) = self._reader.read(raw)
         except ValueError as err:
             self.get_logger().warning(f"rejected joint state: {err}", throttle_duration_sec=1.0)
             return
-        stamp = stamp_to_ns(msg.header.stamp)
-        if stamp < self._state_ns:
+        previous = self._state_ns
+        if stamp < previous:
             self.get_logger().warning(
                 "joint state time went backwards: restarting from the measured configuration"
             )
             self._restart()
+            previous = -1
         self._q, self._dq, self._state_ns = q, dq, stamp
+        self._state_sent_ns = info["source_timestamp"]
         if self.trigger == "state":
             if stamp == self._answered_ns:  # the same state again: repeat the answer
-                self._pub.publish(self._command)
+                self._pub.publish(self._command_bytes)
                 return
-            self._tick(stamp * 1e-9)
+            sent = self._tick(stamp * 1e-9)
+            self.loop_stats.tick(
+                start,
+                time.perf_counter_ns(),
+                sent - self._state_sent_ns,
+                -1,
+                stamp - previous if previous >= 0 else -1,
+            )
 
     def _on_timer(self) -> None:
+        start = time.perf_counter_ns()
         if self._q is None:
             return
         now = self._now()
@@ -282,7 +323,10 @@ class JointController(Node):
             self.get_logger().info("joint states are back: commanding again")
             self._silent = False
             self._restart()
-        self._tick(now)
+        sent = self._tick(now)
+        self.loop_stats.tick(
+            start, time.perf_counter_ns(), sent - self._state_sent_ns, -1, self._nominal_ns
+        )
 
     def _restart(self) -> None:
         self._reference = None
@@ -299,35 +343,43 @@ class JointController(Node):
             self._reference = Reference(traj, self._reference.sample(traj.start))
         return self._reference.sample(t)
 
-    def _tick(self, t: float) -> None:
-        q, dq = self._q, self._dq
-        dt = 0.0 if self._t_last is None else min(max(t - self._t_last, 0.0), MAX_DT)
-        self._t_last = t
-        ref = self._sample(t)
-        split = self.compute(q, dq, ref, dt)
-        unclamped = split.total
-        tau = np.clip(unclamped, -self.effort_limits, self.effort_limits)
-        cmd = self._command
-        cmd.header.stamp.sec, cmd.header.stamp.nanosec = divmod(self._state_ns, 1_000_000_000)
-        cmd.effort = tau.tolist()
-        self._pub.publish(cmd)
-        self._answered_ns = self._state_ns
-        self._state.data = np.concatenate(
-            (
-                [self._state_ns * 1e-9],
-                ref.q,
-                ref.dq,
-                ref.ddq,
-                q,
-                dq,
-                ref.q - q,
-                ref.dq - dq,
-                split.feedback,
-                split.model,
-                split.gravity,
-                unclamped,
-                tau,
-            )
-        ).tolist()
-        self._state_pub.publish(self._state)
-        self.after_command(ref, q, unclamped, dt)
+    def _tick(self, t: float) -> int:
+        """Compute and publish the command and the state; returns when the command was
+        published [ns, system clock]."""
+        with self._lock:
+            q, dq = self._q, self._dq
+            dt = 0.0 if self._t_last is None else min(max(t - self._t_last, 0.0), MAX_DT)
+            self._t_last = t
+            ref = self._sample(t)
+            split = self.compute(q, dq, ref, dt)
+            unclamped = split.total
+            cmd = self._command
+            tau = np.clip(unclamped, -self.effort_limits, self.effort_limits, out=cmd.effort)
+            cmd.set_stamp(self._state_ns)
+            self._command_bytes = cmd.to_bytes()
+            self._pub.publish(self._command_bytes)
+            sent = time.time_ns()
+            self._answered_ns = self._state_ns
+            if self._state_pub.get_subscription_count():  # nobody listening: nothing to build
+                data = self._state.data
+                data[0] = self._state_ns * 1e-9
+                np.concatenate(
+                    (
+                        ref.q,
+                        ref.dq,
+                        ref.ddq,
+                        q,
+                        dq,
+                        ref.q - q,
+                        ref.dq - dq,
+                        split.feedback,
+                        split.model,
+                        split.gravity,
+                        unclamped,
+                        tau,
+                    ),
+                    out=data[1:],
+                )
+                self._state_pub.publish(self._state.to_bytes())
+            self.after_command(ref, q, unclamped, dt)
+        return sent

@@ -27,6 +27,17 @@ CONTROL_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+#: Publishers of the control topics (joint states, /clock, commands, controller state):
+#: reliable like :data:`CONTROL_QOS`, but the writer keeps its last 1000 samples. The loop
+#: itself only ever wants the newest; an observer that falls behind a loop running faster
+#: than real time (recorder, test probe; a starved process on a loaded machine) asks for
+#: the samples it missed again, and with a writer history of one they would be gone.
+CONTROL_PUBLISHER_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 #: References: a few may be queued so that none is lost while a tick runs.
 REFERENCE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,

@@ -173,6 +173,9 @@ def test_runtime_changes_of_law_gains_and_model_are_validated(make_loop):
     loop = id_loop(make_loop, robot)
     loop.start(JOINTS[robot], [target])
     loop.run_until(0.5)
+    # Paused while the parameters change: the new law and model act from t ≈ 0.5 s however
+    # fast the loop runs compared to the parameter service calls.
+    loop.pause()
     bad_updates = [
         {"law": "computed_torque"},
         {"omega_n": -3.0},
@@ -194,6 +197,7 @@ def test_runtime_changes_of_law_gains_and_model_are_validated(make_loop):
     assert all(r.successful for r in loop.probe.set_parameters(loop.controller, good))
     (mass,) = loop.probe.set_parameters(loop.controller, {"model_mass_scale": [1.0, 1.1]})
     assert mass.successful, mass.reason
+    loop.resume()
     loop.run_until(3.0)
     q_e, _ = loop.final_state()
     # Feedforward + PD with a constant reference is PD + ĝ(q); with link 2 modelled 10 %
