@@ -49,6 +49,19 @@ def main(argv: list[str] | None = None) -> int:
     p_exp.add_argument(
         "--report", type=Path, default=None, help="also write DIR/results.md (e.g. docs/)"
     )
+    p_bench = sub.add_parser(
+        "bench",
+        help="measure the control loop: law compute, lockstep over ROS 2 vs ping-pong and "
+        "in-process, realtime 1 kHz, jsc analyze; prints a table, writes bench.json",
+    )
+    p_bench.add_argument("--out", type=Path, default=Path("out/bench"), help="output dir")
+    p_bench.add_argument("--quick", action="store_true", help="short runs (< 1 min in all)")
+    p_bench.add_argument(
+        "--sections", type=lambda s: s.split(","), default=None, help="comma-separated subset"
+    )
+    p_bench.add_argument(
+        "--realtime-seconds", type=float, default=None, help="realtime run length [s] (30)"
+    )
     args = parser.parse_args(argv)
     if args.command == "experiment":
         from joint_space_control.cli import experiment
@@ -56,6 +69,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.list:
             return experiment.list_scenarios()
         return experiment.run(args.names, args.all, args.out, args.short, args.jobs, args.report)
+    if args.command == "bench":
+        from joint_space_control.cli import bench
+
+        return bench.run(args.out, args.quick, args.sections, args.realtime_seconds)
     if args.command == "analyze":
         return analyze.run(args.bag, args.out, args.quiet)
     if args.command == "demo":

@@ -1,0 +1,80 @@
+"""What a benchmark result was measured on: the machine and the software versions."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import os
+import platform
+import sys
+from pathlib import Path
+from typing import Any
+
+#: Distributions reported, by the name shown (first installed distribution wins).
+PACKAGES = {
+    "rclpy": ("ros-jazzy-rclpy", "ros-rclpy", "rclpy"),
+    "rmw_fastrtps_cpp": ("ros-rmw-fastrtps-cpp",),
+    "fastdds": ("ros-fastrtps",),
+    "pinocchio": ("pin",),
+    "pybullet": ("pybullet",),
+    "numpy": ("numpy",),
+}
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:  # pragma: no cover - not Linux
+        pass
+    return platform.processor() or platform.machine()
+
+
+def machine() -> dict[str, Any]:
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    return {
+        "cpu": cpu_model(),
+        "cores": os.cpu_count(),
+        "cores_usable": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
+        "platform": platform.platform(),
+        "load_average_1_5_15": [round(x, 2) for x in load],
+    }
+
+
+def versions() -> dict[str, str]:
+    out = {"python": sys.version.split()[0]}
+    for shown, candidates in PACKAGES.items():
+        for name in candidates:
+            try:
+                out[shown] = importlib.metadata.version(name)
+                break
+            except importlib.metadata.PackageNotFoundError:
+                continue
+        else:
+            out[shown] = "not installed"
+    out["rmw_implementation"] = os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp (default)")
+    return out
+
+
+class StealMeter:
+    """CPU time the hypervisor took from this machine's CPUs ("steal" in /proc/stat) while
+    a part of the benchmark ran, as a fraction of all CPU time; None where not available."""
+
+    def __init__(self) -> None:
+        self._start = _cpu_times()
+
+    def fraction(self) -> float | None:
+        end = _cpu_times()
+        if self._start is None or end is None:
+            return None
+        total = sum(end) - sum(self._start)
+        return (end[7] - self._start[7]) / total if total > 0 else None
+
+
+def _cpu_times() -> list[int] | None:
+    try:
+        fields = Path("/proc/stat").read_text().splitlines()[0].split()
+    except OSError:  # pragma: no cover - not Linux
+        return None
+    values = [int(v) for v in fields[1:]]
+    return values if len(values) >= 8 else None

@@ -1,0 +1,344 @@
+"""Benchmarks over ROS 2: the lockstep loop between two processes, the plain rclpy ping-pong,
+and the realtime loop at 1 kHz. Every part runs in a leased ROS domain (no other run on the
+machine sees it) and stops every process it starts, also on error or Ctrl-C.
+
+The loops are measured by the nodes themselves (their ``/diagnostics``, see
+:mod:`joint_space_control.nodes.loop_statistics`); the observer here subscribes to nothing
+else, so the lockstep loop is exactly two processes exchanging messages.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import rclpy
+import rclpy.duration
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.executors import SingleThreadedExecutor
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from joint_space_control.experiments.domains import lease_domain
+from joint_space_control.experiments.processes import ProcessGroup, isolated_env
+from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.model.robots import resolve_robot
+from joint_space_control.nodes.diagnostics import DIAGNOSTICS_QOS, statuses
+from joint_space_control.nodes.messages import REFERENCE_QOS
+
+#: Controller parameters per law: well damped at 1 kHz on both robots.
+CONTROLLER_PARAMS = {
+    "pd_gravity": {"kp": 100.0, "kd": 10.0},
+    "inverse_dynamics": {"omega_n": 20.0, "zeta": 1.0},
+}
+#: Set-point of every run: a step of 0.3 rad on every joint.
+STEP = 0.3
+
+
+def joints_of(robot: str) -> tuple[str, ...]:
+    return RobotModel(resolve_robot(robot, "")).joint_names
+
+
+class Observer:
+    """A client node in the run's domain: /diagnostics, the reference, the sim's services."""
+
+    def __init__(self, domain_id: int) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node(f"jsc_bench_{domain_id}", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.latest: dict[str, dict[str, float | str]] = {}
+        self.node.create_subscription(
+            DiagnosticArray, "/diagnostics", self._on_diagnostics, DIAGNOSTICS_QOS
+        )
+        self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        self.latest.update(statuses(msg))
+
+    def status(self, node_name: str) -> dict[str, float | str] | None:
+        return self.latest.get(f"{node_name}: control loop")
+
+    def spin_until(
+        self, done: Callable[[], bool], timeout: float, what: str, check: Callable[[], None]
+    ) -> None:
+        end = time.monotonic() + timeout
+        while not done():
+            if time.monotonic() > end:
+                raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
+            check()
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def wait_for_loop(self, check: Callable[[], None], timeout: float = 30.0) -> None:
+        """Until the simulator and a controller are connected both ways."""
+        n = self.node
+        self.spin_until(
+            lambda: (
+                n.count_subscribers("joint_states") >= 1
+                and n.count_publishers("effort_command") >= 1
+                and n.count_subscribers("effort_command") >= 1
+                and self._ref_pub.get_subscription_count() >= 1
+            ),
+            timeout,
+            "the simulator and the controller to connect",
+            check,
+        )
+
+    def send_setpoint(self, joints: Sequence[str], value: float) -> None:
+        msg = JointTrajectory(joint_names=list(joints))
+        msg.points = [JointTrajectoryPoint(positions=[value] * len(joints))]
+        self._ref_pub.publish(msg)
+        if not self._ref_pub.wait_for_all_acked(rclpy.duration.Duration(seconds=10.0)):
+            raise TimeoutError("reference not acknowledged")
+
+    def trigger(self, service: str, check: Callable[[], None], timeout: float = 10.0) -> None:
+        client = self.node.create_client(Trigger, service)
+        try:
+            self.spin_until(client.service_is_ready, timeout, f"service {service}", check)
+            future = client.call_async(Trigger.Request())
+            self.spin_until(future.done, timeout, f"answer of {service}", check)
+            if not future.result().success:
+                raise RuntimeError(f"{service}: {future.result().message}")
+        finally:
+            self.node.destroy_client(client)
+
+    def wait_for_total(
+        self, node_name: str, key: str, at_least: float, check: Callable[[], None], timeout: float
+    ) -> dict[str, float | str]:
+        """The first diagnostics of ``node_name`` whose ``key`` reached ``at_least``."""
+        self.spin_until(
+            lambda: float((self.status(node_name) or {}).get(key, -1.0)) >= at_least,
+            timeout,
+            f"{node_name} {key} >= {at_least}",
+            check,
+        )
+        return dict(self.status(node_name))
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def _summary(status: Mapping[str, Any], keys: Sequence[str]) -> dict[str, float]:
+    """``{"p50_us": …}`` from ``total.<metric>.p50_us`` and the like."""
+    return {k.rsplit(".", 1)[1]: float(status[k]) for k in keys}
+
+
+def lockstep(
+    workdir: Path, robot: str, laws: Sequence[str], seconds: float, log: Callable[[str], None]
+) -> list[dict[str, Any]]:
+    """Lockstep throughput of sim_bridge + each law's controller (two processes) on
+    ``robot``: ``seconds`` of wall time from the first tick, measured by the controller."""
+    joints = joints_of(robot)
+    results = []
+    with lease_domain() as lease, ProcessGroup(workdir, lease.domain_id) as group:
+        group.start(
+            "sim_bridge",
+            {"robot": robot, "mode": "lockstep", "start_paused": True},
+        )
+        observer = Observer(lease.domain_id)
+        try:
+            for law in laws:
+                controller = _controller(law)
+                log(f"lockstep {robot} {law}: {seconds:g} s")
+                node = group.start(
+                    controller, {"robot": robot, "trigger": "state", **CONTROLLER_PARAMS[law]}
+                )
+                observer.wait_for_loop(group.check_alive)
+                observer.send_setpoint(joints, STEP)
+                observer.trigger("/sim_bridge/resume", group.check_alive)
+                status = observer.wait_for_total(
+                    controller, "total.seconds", seconds, group.check_alive, 60 + 20 * seconds
+                )
+                sim = observer.status("sim_bridge") or {}
+                observer.trigger("/sim_bridge/pause", group.check_alive)
+                node.stop()
+                del group.nodes[controller]
+                results.append(
+                    {
+                        "robot": robot,
+                        "law": law,
+                        "steps_per_s": float(status["total.rate_hz"]),
+                        "real_time_factor": float(status["total.rate_hz"]) * 1e-3,
+                        "steps": int(float(status["total.ticks"])),
+                        "callback": _summary(
+                            status,
+                            [
+                                "total.compute.p50_us",
+                                "total.compute.p99_us",
+                                "total.compute.max_us",
+                            ],
+                        ),
+                        "latency": _summary(
+                            status,
+                            [
+                                "total.latency.p50_us",
+                                "total.latency.p99_us",
+                                "total.latency.max_us",
+                            ],
+                        ),
+                        "sim_step_p50_us": float(sim.get("compute.p50_us", float("nan"))),
+                    }
+                )
+        finally:
+            observer.close()
+    return results
+
+
+def realtime(
+    workdir: Path, robot: str, law: str, seconds: float, log: Callable[[str], None]
+) -> dict[str, Any]:
+    """sim_bridge in realtime mode at 1 kHz with the controller answering every state, for
+    ``seconds`` from the resume: the simulator's schedule, jitter and latency."""
+    controller = _controller(law)
+    joints = joints_of(robot)
+    log(f"realtime {robot} {law}: {seconds:g} s at 1 kHz")
+    with lease_domain() as lease, ProcessGroup(workdir, lease.domain_id) as group:
+        group.start(
+            "sim_bridge",
+            {"robot": robot, "mode": "realtime", "start_paused": True, "command_timeout": 0.1},
+        )
+        group.start(controller, {"robot": robot, "trigger": "state", **CONTROLLER_PARAMS[law]})
+        observer = Observer(lease.domain_id)
+        try:
+            observer.wait_for_loop(group.check_alive)
+            observer.send_setpoint(joints, STEP)
+            observer.trigger("/sim_bridge/resume", group.check_alive)
+            sim = observer.wait_for_total(
+                "sim_bridge", "total.seconds", seconds, group.check_alive, 60 + 3 * seconds
+            )
+            ctrl = observer.status(controller) or {}
+        finally:
+            observer.close()
+    ticks = float(sim["total.ticks"])
+    return {
+        "robot": robot,
+        "law": law,
+        "seconds": float(sim["total.seconds"]),
+        "ticks": int(ticks),
+        "rate_hz": float(sim["total.rate_hz"]),
+        "jitter": _summary(
+            sim, ["total.jitter.p50_us", "total.jitter.p99_us", "total.jitter.max_us"]
+        ),
+        "latency": _summary(
+            sim, ["total.latency.p50_us", "total.latency.p99_us", "total.latency.max_us"]
+        ),
+        "lateness": _summary(
+            sim, ["total.lateness.p50_us", "total.lateness.p99_us", "total.lateness.max_us"]
+        ),
+        "late_fraction": float(sim["total.late"]) / ticks,
+        "too_late_fraction": float(sim["total.too_late"]) / ticks,
+        "on_time_fraction": 1.0 - float(sim["total.late"]) / ticks,
+        "controller_callback": _summary(
+            ctrl, ["total.compute.p50_us", "total.compute.p99_us", "total.compute.max_us"]
+        )
+        if ctrl
+        else {},
+    }
+
+
+def pingpong(robot: str, seconds: float, log: Callable[[str], None]) -> dict[str, Any]:
+    """The plain rclpy ping-pong (:mod:`joint_space_control.bench.pingpong`) with the
+    robot's joint names, two processes."""
+    joints = ",".join(joints_of(robot))
+    log(f"pingpong {robot}: {seconds:g} s")
+    module = "joint_space_control.bench.pingpong"
+    with lease_domain() as lease:
+        env = isolated_env(lease.domain_id)
+        pong = subprocess.Popen(
+            [sys.executable, "-m", module, "pong", "--joints", joints],
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        try:
+            ping = subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    module,
+                    "ping",
+                    "--joints",
+                    joints,
+                    "--seconds",
+                    str(seconds),
+                ],
+                env=env,
+                capture_output=True,
+                text=True,
+                timeout=90 + seconds,
+            )
+        finally:
+            _stop(pong)
+    lines = [line for line in ping.stdout.splitlines() if line.startswith("{")]
+    result = json.loads(lines[-1]) if lines else {"error": ping.stderr[-500:]}
+    if "error" in result:
+        raise RuntimeError(f"ping-pong failed: {result['error']}")
+    return {"robot": robot, "joints": len(joints.split(",")), **result}
+
+
+def _stop(proc: subprocess.Popen, timeout: float = 5.0) -> None:
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+        if proc.poll() is not None:
+            return
+        proc.send_signal(sig)
+        try:
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            continue
+
+
+def _controller(law: str) -> str:
+    from joint_space_control.bench.compute import LAWS
+
+    return LAWS[law]
+
+
+def analyze_time(workdir: Path, seconds: float, log: Callable[[str], None]) -> dict[str, Any]:
+    """Record ``seconds`` of a lockstep run (planar_2dof, PD + g) with the recorder, then
+    time ``jsc analyze`` on the bag (metrics, figures, report)."""
+    import yaml
+
+    from joint_space_control.cli import analyze
+    from joint_space_control.experiments.loop import ClosedLoop
+
+    log(f"jsc analyze: recording {seconds:g} s of simulated time")
+    bag = workdir / "bag"
+    with ClosedLoop(
+        workdir / "logs",
+        None,
+        "planar_2dof",
+        controller_params=CONTROLLER_PARAMS["pd_gravity"],
+        record=bag,
+    ) as loop:
+        loop.start(list(joints_of("planar_2dof")), [[STEP, -STEP]])
+        loop.run_until(seconds, timeout=120 + 20 * seconds)
+        loop.pause()
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())
+    messages = int(meta["rosbag2_bagfile_information"]["message_count"])
+    with open(os.devnull, "w") as sink:
+        stdout, sys.stdout = sys.stdout, sink
+        try:
+            t0 = time.perf_counter()
+            code = analyze.run(bag, workdir / "report", True)
+            elapsed = time.perf_counter() - t0
+        finally:
+            sys.stdout = stdout
+    if code != 0:
+        raise RuntimeError(f"jsc analyze failed with exit code {code}")
+    return {
+        "messages": messages,
+        "seconds": elapsed,
+        "seconds_per_million_messages": elapsed / messages * 1e6,
+    }

@@ -1,0 +1,331 @@
+"""``jsc bench``: every benchmark in one run, a table on stdout and ``bench.json``.
+
+Sections (all by default): ``compute`` (laws and Pinocchio calls per tick, no ROS),
+``in_process`` (plant + law in one process, no ROS), ``pingpong`` (plain rclpy), ``lockstep``
+(sim_bridge + controller over ROS 2), ``realtime`` (1 kHz on the wall clock, with the
+machine's floor: a bare Python thread paced the same way) and ``analyze`` (``jsc analyze``
+per million messages). ``ratios`` and ``goals`` are derived; the CPU time the hypervisor took
+during each part (``cpu_steal_fraction``) says how much the machine itself was disturbed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from joint_space_control.bench import compute, machine
+
+SECTIONS = ("compute", "in_process", "pingpong", "lockstep", "realtime", "analyze")
+#: Not a section of its own: runs with ``realtime`` (the machine's floor for it).
+FLOOR = "realtime_floor"
+ROBOTS = ("planar_2dof", "iiwa")
+LAWS = tuple(compute.LAWS)
+
+
+@dataclass(frozen=True)
+class Options:
+    """How long each part runs; :meth:`quick` is the < 1 min form (for tests, CI)."""
+
+    ticks: int = 20_000  # law timings per (robot, law)
+    in_process_steps: int = 5_000
+    pingpong_seconds: float = 5.0
+    lockstep_seconds: float = 5.0
+    realtime_seconds: float = 30.0
+    analyze_seconds: float = 20.0  # simulated time recorded for jsc analyze
+    floor_seconds: float = 10.0  # 1 kHz pacing without ROS
+    realtime_robot: str = "iiwa"
+    realtime_law: str = "inverse_dynamics"
+
+    @classmethod
+    def quick(cls) -> Options:
+        return cls(
+            ticks=1000,
+            in_process_steps=500,
+            pingpong_seconds=0.5,
+            lockstep_seconds=0.5,
+            realtime_seconds=1.0,
+            analyze_seconds=0.5,
+            floor_seconds=1.0,
+        )
+
+
+def run(
+    out: Path,
+    options: Options,
+    sections: Sequence[str] = SECTIONS,
+    log: Callable[[str], None] = print,
+) -> dict[str, Any]:
+    """Run the sections, write ``out/bench.json`` and ``out/bench.txt``; returns the result."""
+    from joint_space_control.bench import ros  # rclpy only when the ROS parts run
+
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.monotonic()
+    result: dict[str, Any] = {
+        "started": datetime.now(UTC).isoformat(timespec="seconds"),
+        "machine": machine.machine(),
+        "versions": machine.versions(),
+        "options": options.__dict__,
+        "sections": list(sections),
+    }
+    steal: dict[str, float | None] = {}
+    result["cpu_steal_fraction"] = steal  # CPU time the hypervisor took, per part
+
+    def measured(name: str, run_part: Callable[[], Any]) -> Any:
+        meter = machine.StealMeter()
+        value = run_part()
+        steal[name] = meter.fraction()
+        return value
+
+    if "compute" in sections:
+        log("compute: laws and Pinocchio calls per tick")
+        result["compute"] = measured(
+            "compute",
+            lambda: [
+                compute.law_timings(robot, law, options.ticks) for robot in ROBOTS for law in LAWS
+            ],
+        )
+    if "in_process" in sections:
+        log("in_process: plant + law in one process")
+        result["in_process"] = measured(
+            "in_process",
+            lambda: [
+                compute.in_process_loop(robot, law, options.in_process_steps)
+                for robot in ROBOTS
+                for law in LAWS
+            ],
+        )
+    # per robot, the ping-pong right before the loops it is compared with
+    for robot in ROBOTS:
+        if "pingpong" in sections:
+            result.setdefault("pingpong", []).append(
+                measured(
+                    f"pingpong_{robot}",
+                    lambda robot=robot: ros.pingpong(robot, options.pingpong_seconds, log),
+                )
+            )
+        if "lockstep" in sections:
+            result.setdefault("lockstep", []).extend(
+                measured(
+                    f"lockstep_{robot}",
+                    lambda robot=robot: ros.lockstep(
+                        out / "runs" / f"lockstep_{robot}",
+                        robot,
+                        LAWS,
+                        options.lockstep_seconds,
+                        log,
+                    ),
+                )
+            )
+    if "realtime" in sections:
+        log(f"realtime floor: a Python thread paced at 1 kHz, {options.floor_seconds:g} s")
+        result[FLOOR] = measured(FLOOR, lambda: compute.pacing_floor(options.floor_seconds))
+        result["realtime"] = measured(
+            "realtime",
+            lambda: ros.realtime(
+                out / "runs" / "realtime",
+                options.realtime_robot,
+                options.realtime_law,
+                options.realtime_seconds,
+                log,
+            ),
+        )
+    if "analyze" in sections:
+        result["analyze"] = measured(
+            "analyze",
+            lambda: ros.analyze_time(out / "runs" / "analyze", options.analyze_seconds, log),
+        )
+    result["ratios"] = ratios(result)
+    result["goals"] = goals(result)
+    result["duration_s"] = time.monotonic() - started
+    (out / "bench.json").write_text(json.dumps(_plain(result), indent=2, allow_nan=False) + "\n")
+    table = format_table(result)
+    (out / "bench.txt").write_text(table + "\n")
+    return result
+
+
+def _find(rows: Sequence[dict[str, Any]], **match: Any) -> dict[str, Any] | None:
+    for row in rows:
+        if all(row.get(k) == v for k, v in match.items()):
+            return row
+    return None
+
+
+def ratios(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """The lockstep loop against the plain ping-pong and against the in-process ceiling."""
+    out = []
+    for loop in result.get("lockstep", []):
+        robot, law = loop["robot"], loop["law"]
+        pp = _find(result.get("pingpong", []), robot=robot)
+        ceiling = _find(result.get("in_process", []), robot=robot, law=law)
+        out.append(
+            {
+                "robot": robot,
+                "law": law,
+                "loop_over_pingpong": loop["steps_per_s"] / pp["round_trips_per_s"]
+                if pp
+                else math.nan,
+                "loop_over_in_process": loop["steps_per_s"] / ceiling["steps_per_s"]
+                if ceiling
+                else math.nan,
+            }
+        )
+    return out
+
+
+def goals(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """The issue's goals, each with the measured value and whether it is met (None when the
+    section did not run)."""
+    law = _find(result.get("compute", []), robot="iiwa", law="inverse_dynamics")
+    loop = _find(result.get("lockstep", []), robot="iiwa", law="inverse_dynamics")
+    ratio = _find(result.get("ratios", []), robot="iiwa", law="inverse_dynamics")
+    rt = result.get("realtime")
+
+    def goal(name: str, value: float | None, ok: Callable[[float], bool]) -> dict[str, Any]:
+        met = None if value is None or math.isnan(value) else bool(ok(value))
+        return {"goal": name, "measured": value, "met": met}
+
+    return [
+        goal(
+            "inverse dynamics on iiwa <= 20 us median per tick",
+            law["law_per_tick"]["p50_us"] if law else None,
+            lambda v: v <= 20.0,
+        ),
+        goal(
+            "lockstep over ROS 2, iiwa + inverse dynamics >= 2000 steps/s",
+            loop["steps_per_s"] if loop else None,
+            lambda v: v >= 2000.0,
+        ),
+        goal(
+            "lockstep at least as fast as the plain rclpy ping-pong (ratio >= 1)",
+            ratio["loop_over_pingpong"] if ratio else None,
+            lambda v: v >= 1.0,
+        ),
+        goal(
+            "realtime 1 kHz: >= 99 % of ticks on time (<= 200 us late)",
+            rt["on_time_fraction"] if rt else None,
+            lambda v: v >= 0.99,
+        ),
+        goal(
+            "realtime 1 kHz: latency p99 <= 1 ms",
+            rt["latency"]["p99_us"] if rt else None,
+            lambda v: v <= 1000.0,
+        ),
+        goal(
+            "realtime 1 kHz: no tick later than 5 ms",
+            rt["lateness"]["max_us"] if rt else None,
+            lambda v: v <= 5000.0,
+        ),
+    ]
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready: NaN and infinities become null."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _f(value: Any, digits: int = 0) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    return f"{value:,.{digits}f}"
+
+
+def format_table(result: dict[str, Any]) -> str:
+    """The human-readable summary of a result."""
+    m, v = result["machine"], result["versions"]
+    lines = [
+        f"jsc bench  {result['started']}  ({result.get('duration_s', 0):.0f} s)",
+        f"machine: {m['cpu']}, {m['cores']} cores, load {m['load_average_1_5_15']}",
+        "versions: " + ", ".join(f"{k} {val}" for k, val in v.items()),
+        "",
+    ]
+    if "compute" in result:
+        lines += [
+            "control law per tick [us]             law p50   law p99   pinocchio p50   p99",
+        ]
+        for row in result["compute"]:
+            lines.append(
+                f"  {row['robot']:12s} {row['law']:18s} {_f(row['law_per_tick']['p50_us'], 1):>9}"
+                f" {_f(row['law_per_tick']['p99_us'], 1):>9}"
+                f" {_f(row['pinocchio_per_tick']['p50_us'], 1):>15}"
+                f" {_f(row['pinocchio_per_tick']['p99_us'], 1):>5}"
+            )
+        lines.append("")
+    if "lockstep" in result or "in_process" in result or "pingpong" in result:
+        lines.append(
+            "lockstep [steps/s]                 over ROS  in-process  ping-pong  "
+            "loop/pp  loop/in-proc  callback p50/p99 [us]  latency p50/p99 [us]"
+        )
+        for robot in ROBOTS:
+            pp = _find(result.get("pingpong", []), robot=robot)
+            for law in LAWS:
+                loop = _find(result.get("lockstep", []), robot=robot, law=law) or {}
+                ceiling = _find(result.get("in_process", []), robot=robot, law=law) or {}
+                ratio = _find(result.get("ratios", []), robot=robot, law=law) or {}
+                cb, lat = loop.get("callback", {}), loop.get("latency", {})
+                lines.append(
+                    f"  {robot:12s} {law:18s} {_f(loop.get('steps_per_s')):>9}"
+                    f" {_f(ceiling.get('steps_per_s')):>11}"
+                    f" {_f(pp['round_trips_per_s'] if pp else None):>10}"
+                    f" {_f(ratio.get('loop_over_pingpong'), 2):>8}"
+                    f" {_f(ratio.get('loop_over_in_process'), 2):>13}"
+                    f" {_f(cb.get('p50_us')):>12} / {_f(cb.get('p99_us')):<8}"
+                    f" {_f(lat.get('p50_us')):>10} / {_f(lat.get('p99_us'))}"
+                )
+        lines.append("")
+    floor = result.get(FLOOR)
+    if floor:
+        lines += [
+            f"1 kHz floor (Python thread, no ROS, {floor['seconds']:g} s): on time "
+            f"{100 * floor['on_time_fraction']:.2f} %, > 1 ms late "
+            f"{100 * floor['too_late_fraction']:.2f} %, lateness p50/p99/max "
+            + " / ".join(_f(floor["lateness"][f"{s}_us"]) for s in ("p50", "p99", "max"))
+            + " us",
+        ]
+    rt = result.get("realtime")
+    if rt:
+        lines += [
+            f"realtime 1 kHz, {rt['robot']} {rt['law']}, {rt['seconds']:.1f} s:",
+            f"  achieved rate {rt['rate_hz']:.1f} Hz, ticks on time (<= 200 us late) "
+            f"{100 * rt['on_time_fraction']:.2f} %, late > 200 us "
+            f"{100 * rt['late_fraction']:.2f} %, too late > 1 ms "
+            f"{100 * rt['too_late_fraction']:.2f} %",
+            "  period jitter p50/p99/max "
+            + " / ".join(_f(rt["jitter"][f"{s}_us"]) for s in ("p50", "p99", "max"))
+            + " us;  latency p50/p99/max "
+            + " / ".join(_f(rt["latency"][f"{s}_us"]) for s in ("p50", "p99", "max"))
+            + " us;  lateness max "
+            + _f(rt["lateness"]["max_us"])
+            + " us",
+            "",
+        ]
+    an = result.get("analyze")
+    if an:
+        lines += [
+            f"jsc analyze: {an['messages']:,} messages in {an['seconds']:.2f} s = "
+            f"{an['seconds_per_million_messages']:.1f} s per million messages",
+            "",
+        ]
+    steal = {k: v for k, v in result.get("cpu_steal_fraction", {}).items() if v is not None}
+    if steal:
+        lines += [
+            "CPU time taken by the hypervisor (steal): "
+            + ", ".join(f"{k} {100 * v:.1f} %" for k, v in steal.items()),
+            "",
+        ]
+    lines.append("goals:")
+    for g in result.get("goals", []):
+        mark = {True: "met", False: "NOT met", None: "not measured"}[g["met"]]
+        lines.append(f"  [{mark:>12}] {g['goal']}: {_f(g['measured'], 3)}")
+    return "\n".join(lines)
