@@ -107,6 +107,7 @@ class Plant:
         self.effort_limits = np.array(
             [by_name[name][1][10] if by_name[name][1][10] > 0 else np.inf for name in joints]
         )
+        self._lowest_effort = -self.effort_limits
         for link in range(-1, pb.getNumJoints(self.body, c)):
             pb.changeDynamics(
                 self.body,
@@ -210,7 +211,7 @@ class Plant:
     def step(self, tau: np.ndarray, substeps: int = 1) -> None:
         """Hold the motor torque tau (clamped to the effort limits) over ``substeps`` physics
         steps, adding the viscous friction −F q̇ evaluated at each sub-step."""
-        tau = np.clip(tau, -self.effort_limits, self.effort_limits)
+        tau = np.clip(tau, self._lowest_effort, self.effort_limits)
         c, body, idx = self.client, self.body, self._idx
         for _ in range(substeps):
             if self._has_friction:

@@ -26,8 +26,11 @@ from joint_space_control.nodes.control_path import ControlPath
 from joint_space_control.nodes.diagnostics import DIAGNOSTICS_QOS, statuses
 from joint_space_control.nodes.messages import REFERENCE_QOS, stamp_to_ns
 
-#: Longest wait [s] for a joint state or command before the probe serves the rest.
+#: Longest wait [s] for a joint state or command before the probe serves the rest, and how
+#: often [s] it serves the rest (services, parameters, diagnostics, the caller's own
+#: subscriptions) while joint states keep coming.
 OBSERVED_WAIT = 0.005
+REST_PERIOD = 0.002
 RECORD_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10000, reliability=ReliabilityPolicy.RELIABLE
 )
@@ -78,6 +81,14 @@ class LoopProbe:
         self._param_clients: dict[str, AsyncParameterClient] = {}
         self._diagnostics: dict[str, dict[str, float | str]] | None = None
 
+    def observe(self, msg_type: type, topic: str, callback: Callable[[Any], None]) -> None:
+        """Take every message of a high-rate topic (a controller's ``~/state``) through the
+        probe's dedicated loop, as the joint states are: through ``self.node``'s executor
+        the probe falls behind a loop running faster than real time."""
+        self._observed.subscription(
+            msg_type, topic, lambda msg, info=None: callback(msg), RECORD_QOS
+        )
+
     def _on_state(self, msg: JointState, info: object = None) -> None:
         rec = self.recording
         rec.stamps.append(stamp_to_ns(msg.header.stamp))
@@ -97,13 +108,17 @@ class LoopProbe:
         check: Callable[[], None] | None = None,
     ) -> None:
         end = time.monotonic() + timeout
+        rest_due = 0.0
         while not done():
-            if time.monotonic() > end:
+            now = time.monotonic()
+            if now > end:
                 raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
             if check is not None:
                 check()
             self._observed.spin_once(OBSERVED_WAIT)
-            self._serve_rest()
+            if now >= rest_due:  # everything the executor has ready, every REST_PERIOD
+                self._serve_rest()
+                rest_due = now + REST_PERIOD
 
     def _serve_rest(self, limit: int = 1000) -> None:
         """Whatever the executor has ready (services, parameter clients, diagnostics, the
@@ -269,6 +284,7 @@ class LoopProbe:
         return [parameter_value_to_python(v) for v in future.result().values]
 
     def close(self) -> None:
+        self._observed.close()
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)

@@ -94,6 +94,8 @@ class ControlPath:
         self._version = 0  # bumped on every change of the entities
         self._stop = False
         self._wake = GuardCondition(None, None, context=node.context)
+        self._sigint: SignalHandlerGuardCondition | None = None
+        self._prepared: _Prepared | None = None
 
     def __bool__(self) -> bool:
         return bool(self._subscriptions or self._timer)
@@ -155,11 +157,15 @@ class ControlPath:
     def spin(self) -> None:
         """Serve the control path until the context shuts down (Ctrl-C, SIGTERM) or
         :meth:`stop`. Exceptions of the callbacks propagate."""
-        self._serve(_Mode())
+        try:
+            self._serve(_Mode())
+        finally:
+            self.close()
 
     def spin_once(self, timeout: float) -> int:
         """One wait of at most ``timeout`` seconds, then everything ready handed out (for a
-        client that runs its own loop); returns the number of messages."""
+        client that runs its own loop; the wait set is kept between calls: :meth:`close`
+        when done); returns the number of messages."""
         return self._serve(_Mode(timeout_ns=round(timeout * 1e9), once=True))
 
     def drain(self, idle: float, received_before_ns: int) -> None:
@@ -167,58 +173,55 @@ class ControlPath:
         that was received before ``received_before_ns`` (system clock), until a wait of
         ``idle`` seconds brings no such message; later messages are dropped."""
         self._stop = False
-        self._serve(_Mode(round(idle * 1e9), received_before_ns, until_idle=True))
+        try:
+            self._serve(_Mode(round(idle * 1e9), received_before_ns, until_idle=True))
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Let go of the rcl handles and the signal guard condition (idempotent)."""
+        if self._prepared is not None:
+            self._prepared.close()
+            self._prepared = None
+        if self._sigint is not None:
+            self._sigint.destroy()
+            self._sigint = None
 
     def _serve(self, mode: _Mode) -> int:
-        """Wait and hand out as ``mode`` says, rebuilding the wait set whenever the entities
+        """Wait and hand out as ``mode`` says, with a wait set rebuilt whenever the entities
         change; returns the number of messages handed out."""
         context = self.node.context
-        sigint = SignalHandlerGuardCondition(context)
         count = 0
-        try:
-            while not self._stop and context.ok():
-                version = self._version
-                entries, timer = self._subscriptions, self._timer
-                with ExitStack() as handles:  # keep the rcl handles alive while waiting
-                    for handle in (sigint.handle, self._wake.handle):
-                        handles.enter_context(handle)
-                    for entry in entries:
-                        handles.enter_context(entry.sub.handle)
-                    if timer is not None:
-                        handles.enter_context(timer[0].handle)
-                    done, taken = self._loop(version, entries, timer, sigint, mode)
-                count += taken
-                if done:
-                    break
-        finally:
-            sigint.destroy()
+        while not self._stop and context.ok():
+            if self._prepared is None or self._prepared.version != self._version:
+                if self._prepared is not None:
+                    self._prepared.close()
+                if self._sigint is None:
+                    self._sigint = SignalHandlerGuardCondition(context)
+                self._prepared = _Prepared(self, self._sigint)
+            done, taken = self._loop(self._prepared, mode)
+            count += taken
+            if done:
+                break
         return count
 
-    def _loop(
-        self,
-        version: int,
-        entries: list[_Entry],
-        timer: tuple[Timer, Callable[[], None]] | None,
-        sigint: GuardCondition,
-        mode: _Mode,
-    ) -> tuple[bool, int]:
+    def _loop(self, prepared: _Prepared, mode: _Mode) -> tuple[bool, int]:
         """Wait and take until the entities change ((False, n)) or ``mode`` is done
         ((True, n)); n messages were handed out."""
         context = self.node.context
-        subs = [(e.sub.handle, e.sub.msg_type, e.sub.raw, e.callback, e.drain) for e in entries]
-        wait_set = _rclpy.WaitSet(len(subs), 2, 0 if timer is None else 1, 0, 0, 0, context.handle)
-        timer_handle = None if timer is None else timer[0].handle
+        wait_set, subs, timer = prepared.wait_set, prepared.subs, prepared.timer
         add_sub, ready = wait_set.add_subscription, wait_set.is_ready
+        sigint, wake = prepared.guards
         until_ns = mode.until_ns
         count = 0
-        while not self._stop and context.ok() and version == self._version:
+        while not self._stop and context.ok() and prepared.version == self._version:
             wait_set.clear_entities()
             for handle, *_ in subs:
                 add_sub(handle)
-            wait_set.add_guard_condition(sigint.handle)
-            wait_set.add_guard_condition(self._wake.handle)
-            if timer_handle is not None:
-                wait_set.add_timer(timer_handle)
+            wait_set.add_guard_condition(sigint)
+            wait_set.add_guard_condition(wake)
+            if timer is not None:
+                wait_set.add_timer(timer[0])
             wait_set.wait(mode.timeout_ns)
             taken_any = False
             for k, (handle, msg_type, raw, callback, all_queued) in enumerate(subs):
@@ -230,9 +233,9 @@ class ControlPath:
                             count += 1
                             callback(*taken)
                         taken = handle.take_message(msg_type, raw) if all_queued else None
-            if timer_handle is not None and ready("timer", 0):
-                if timer_handle.is_timer_ready():
-                    timer_handle.call_timer()
+            if timer is not None and ready("timer", 0):
+                if timer[0].is_timer_ready():
+                    timer[0].call_timer()
                     timer[1]()
             if mode.once:
                 return True, count
@@ -240,6 +243,32 @@ class ControlPath:
             if mode.until_idle and not taken_any and not woken:
                 return True, count
         return False, count
+
+
+class _Prepared:
+    """The wait set for one version of a control path's entities, their rcl handles held
+    (kept alive, destruction deferred) until :meth:`close`."""
+
+    def __init__(self, path: ControlPath, sigint: SignalHandlerGuardCondition) -> None:
+        self.version = path._version
+        entries, timer = path._subscriptions, path._timer
+        self._handles = ExitStack()
+        handles = [sigint.handle, path._wake.handle] + [e.sub.handle for e in entries]
+        if timer is not None:
+            handles.append(timer[0].handle)
+        for handle in handles:
+            self._handles.enter_context(handle)
+        self.guards = (sigint.handle, path._wake.handle)
+        self.subs = [
+            (e.sub.handle, e.sub.msg_type, e.sub.raw, e.callback, e.drain) for e in entries
+        ]
+        self.timer = None if timer is None else (timer[0].handle, timer[1])
+        self.wait_set = _rclpy.WaitSet(
+            len(self.subs), 2, 0 if timer is None else 1, 0, 0, 0, path.node.context.handle
+        )
+
+    def close(self) -> None:
+        self._handles.close()
 
 
 def spin_node(node: Node, control_path: ControlPath | None) -> None:

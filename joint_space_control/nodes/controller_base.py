@@ -138,6 +138,7 @@ class JointController(Node):
         self.joints = self.model.joint_names
         self.n = len(self.joints)
         self.effort_limits = self.model.effort_limits
+        self._lowest_effort = -self.effort_limits
         self._robot_name = spec.name
         self._rate = rate = params.positive(values, "rate")
         self.trigger = params.choice(values, "trigger", TRIGGERS)
@@ -157,6 +158,8 @@ class JointController(Node):
         self._answered_ns = -1
         self._t_last: float | None = None
         self._reference: Reference | None = None
+        self._reference_last = np.inf  # time of its last point after its start [s]
+        self._held: Sample | None = None  # its sample from then on
         self._pending: list[Trajectory] = []
         self._command = JointStateImage(self.joints, (0, 0, self.n))
         self._command_bytes = b""
@@ -329,7 +332,7 @@ class JointController(Node):
         )
 
     def _restart(self) -> None:
-        self._reference = None
+        self._reference, self._held, self._reference_last = None, None, np.inf
         self._pending = []
         self._t_last = None
         self.reset_state()
@@ -337,11 +340,20 @@ class JointController(Node):
     # -- the tick ----------------------------------------------------------------------
     def _sample(self, t: float) -> Sample:
         if self._reference is None:  # hold the configuration measured at start
-            self._reference = Reference.hold(self._q, t)
+            self._set_reference(Reference.hold(self._q, t))
         while self._pending and self._pending[0].start <= t:
             traj = self._pending.pop(0)
-            self._reference = Reference(traj, self._reference.sample(traj.start))
+            self._set_reference(Reference(traj, self._reference.sample(traj.start)))
+        # past the last point (Reference.sample's own test): the same sample every tick
+        if t - self._reference.trajectory.start >= self._reference_last:
+            if self._held is None:
+                self._held = self._reference.sample(t)
+            return self._held
         return self._reference.sample(t)
+
+    def _set_reference(self, reference: Reference) -> None:
+        self._reference, self._held = reference, None
+        self._reference_last = reference.knots[0][-1]  # after its start [s]
 
     def _tick(self, t: float) -> int:
         """Compute and publish the command and the state; returns when the command was
@@ -354,7 +366,7 @@ class JointController(Node):
             split = self.compute(q, dq, ref, dt)
             unclamped = split.total
             cmd = self._command
-            tau = np.clip(unclamped, -self.effort_limits, self.effort_limits, out=cmd.effort)
+            tau = np.clip(unclamped, self._lowest_effort, self.effort_limits, out=cmd.effort)
             cmd.set_stamp(self._state_ns)
             self._command_bytes = cmd.to_bytes()
             self._pub.publish(self._command_bytes)

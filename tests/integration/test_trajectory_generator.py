@@ -20,7 +20,7 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
 from joint_space_control.experiments import processes
-from joint_space_control.experiments.probe import RECORD_QOS, LoopProbe
+from joint_space_control.experiments.probe import LoopProbe
 from joint_space_control.experiments.processes import ProcessGroup
 from joint_space_control.nodes.messages import CONTROL_QOS, REFERENCE_QOS, stamp_to_ns
 
@@ -289,11 +289,10 @@ def test_controller_samples_the_generated_sinusoid_exactly(make_loop, monkeypatc
     )
     probe = loop.probe
     states: list[list[float]] = []
-    probe.node.create_subscription(
+    probe.observe(
         Float64MultiArray,
         "/pd_gravity_controller/state",
         lambda msg: states.append(list(msg.data)),
-        RECORD_QOS,
     )
     # The simulator is paused at t = 0, so the generator's (simulation) time is 0 as well.
     # Volatile reference: publish until the controller is matched (repeats are identical).
