@@ -62,7 +62,25 @@ def main(argv: list[str] | None = None) -> int:
     p_bench.add_argument(
         "--realtime-seconds", type=float, default=None, help="realtime run length [s] (30)"
     )
+    p_soak = sub.add_parser(
+        "soak",
+        help="soak run: realtime 1 kHz loop for minutes, gains changed every second; memory "
+        "growth, command safety, parameter updates; writes soak.json, non-zero exit on fail",
+    )
+    p_soak.add_argument("--minutes", type=float, default=10.0, help="run length [min] (10)")
+    p_soak.add_argument("--robot", default="iiwa", help="built-in robot (iiwa)")
+    p_soak.add_argument(
+        "--controller",
+        choices=("inverse_dynamics", "pd_gravity"),
+        default="inverse_dynamics",
+        help="controller law (inverse_dynamics)",
+    )
+    p_soak.add_argument("--out", type=Path, default=Path("out/soak"), help="output dir")
     args = parser.parse_args(argv)
+    if args.command == "soak":
+        from joint_space_control.cli import soak
+
+        return soak.run(args.out, args.minutes, args.robot, args.controller)
     if args.command == "experiment":
         from joint_space_control.cli import experiment
 

@@ -1,0 +1,266 @@
+"""Figures and verdict of a soak run (``jsc soak``), no ROS: resident memory and its growth,
+the audit of effort commands, parameter-update bookkeeping and the pass/fail criteria.
+
+The growth of a process's memory is the slope of a least-squares line through its resident
+set size (VmRSS) samples taken after the warm-up, in MB/min (1 MB = 10⁶ bytes). A process
+that leaks grows steadily, so over minutes the slope shows it; allocator steps and the
+first-use growth of caches belong to the warm-up and are left out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+MB = 1e6
+
+
+def parse_vmrss(status: str) -> int | None:
+    """Resident set size [bytes] from the text of ``/proc/<pid>/status`` (None if absent,
+    e.g. a zombie)."""
+    for line in status.splitlines():
+        if line.startswith("VmRSS:"):
+            value, unit = line.split()[1:3]
+            if unit.lower() != "kb":  # pragma: no cover - the kernel always writes kB
+                raise ValueError(f"unexpected VmRSS unit {unit!r}")
+            return int(value) * 1024
+    return None
+
+
+def slope_per_minute(times_s: Sequence[float], values: Sequence[float]) -> float:
+    r"""Least-squares slope of ``values`` over ``times_s`` [s], per minute:
+    b = Σ(tᵢ − t̄)(yᵢ − ȳ) / Σ(tᵢ − t̄)² · 60. NaN with fewer than two distinct times."""
+    t = np.asarray(times_s, dtype=float)
+    y = np.asarray(values, dtype=float)
+    if t.size < 2:
+        return math.nan
+    dt = t - t.mean()
+    ss = float(dt @ dt)
+    if ss == 0.0:
+        return math.nan
+    return float(dt @ (y - y.mean())) / ss * 60.0
+
+
+def memory_summary(
+    times_s: Sequence[float], rss_bytes: Sequence[float], warmup_s: float
+) -> dict[str, Any]:
+    """RSS figures of one process [MB]: at the first sample after the warm-up (``start``),
+    at the last (``end``), the largest over the whole run (``max``), the growth slope after
+    the warm-up [MB/min] and the time span that slope covers [min]."""
+    t = np.asarray(times_s, dtype=float)
+    y = np.asarray(rss_bytes, dtype=float) / MB
+    after = t >= warmup_s
+    ta, ya = t[after], y[after]
+    nan = math.nan
+    return {
+        "samples": int(t.size),
+        "samples_after_warmup": int(ta.size),
+        "start_mb": float(ya[0]) if ya.size else nan,
+        "end_mb": float(ya[-1]) if ya.size else nan,
+        "max_mb": float(y.max()) if y.size else nan,
+        "first_mb": float(y[0]) if y.size else nan,
+        "growth_mb": float(ya[-1] - ya[0]) if ya.size else nan,
+        "slope_mb_per_min": slope_per_minute(ta, ya),
+        "span_min": float(ta[-1] - ta[0]) / 60.0 if ta.size else 0.0,
+    }
+
+
+@dataclass
+class CommandAudit:
+    """Every effort command checked against the URDF effort limits: finite, and
+    |τᵢ| ≤ limitᵢ (plus ``tolerance`` [N·m] for rounding), each named joint known."""
+
+    joints: tuple[str, ...]
+    limits: np.ndarray
+    tolerance: float = 1e-9
+    commands: int = 0
+    violations: int = 0
+    non_finite: int = 0
+    over_limit: int = 0
+    unknown_joints: int = 0
+    max_ratio: float = 0.0  # largest |τᵢ| / limitᵢ seen
+    examples: list[str] = field(default_factory=list)
+    _index: dict[tuple[str, ...], np.ndarray | None] = field(default_factory=dict, repr=False)
+
+    def check(self, names: Sequence[str], effort: np.ndarray) -> bool:
+        """Count one command; True when it is safe."""
+        self.commands += 1
+        key = tuple(names)
+        index = self._index.get(key, ...)
+        if index is ...:
+            position = {j: k for k, j in enumerate(self.joints)}
+            index = (
+                np.array([position[n] for n in key], dtype=int)
+                if all(n in position for n in key) and len(key) == len(effort)
+                else None
+            )
+            self._index[key] = index
+        if index is None:
+            self.unknown_joints += 1
+            return self._violation(f"names {list(key)} with {len(effort)} efforts")
+        effort = np.asarray(effort, dtype=float)
+        if not np.isfinite(effort).all():
+            self.non_finite += 1
+            return self._violation(f"non-finite effort {effort.tolist()}")
+        limits = self.limits[index]
+        ratio = float(np.max(np.abs(effort) / limits)) if effort.size else 0.0
+        self.max_ratio = max(self.max_ratio, ratio)
+        if np.any(np.abs(effort) > limits + self.tolerance):
+            self.over_limit += 1
+            return self._violation(f"effort {effort.tolist()} beyond limits {limits.tolist()}")
+        return True
+
+    def _violation(self, what: str) -> bool:
+        self.violations += 1
+        if len(self.examples) < 5:
+            self.examples.append(what)
+        return False
+
+    def figures(self) -> dict[str, Any]:
+        return {
+            "commands": self.commands,
+            "violations": self.violations,
+            "non_finite": self.non_finite,
+            "over_limit": self.over_limit,
+            "unknown_joints": self.unknown_joints,
+            "max_effort_over_limit": self.max_ratio,
+            "examples": list(self.examples),
+        }
+
+
+@dataclass
+class UpdateTally:
+    """Parameter updates sent and how the node answered: valid ones must be accepted,
+    invalid ones rejected with the old values kept."""
+
+    valid_sent: int = 0
+    valid_accepted: int = 0
+    invalid_sent: int = 0
+    invalid_rejected: int = 0
+    kept_after_reject: int = 0  # rejections after which the node still had the old values
+    reasons: list[str] = field(default_factory=list)
+
+    def valid(self, accepted: bool) -> None:
+        self.valid_sent += 1
+        self.valid_accepted += int(accepted)
+
+    def invalid(self, rejected: bool, reason: str, kept: bool) -> None:
+        self.invalid_sent += 1
+        self.invalid_rejected += int(rejected)
+        self.kept_after_reject += int(rejected and kept)
+        if reason and reason not in self.reasons:
+            self.reasons.append(reason)
+
+    def figures(self) -> dict[str, Any]:
+        return {
+            "valid_sent": self.valid_sent,
+            "valid_accepted": self.valid_accepted,
+            "invalid_sent": self.invalid_sent,
+            "invalid_rejected": self.invalid_rejected,
+            "old_values_kept_after_reject": self.kept_after_reject,
+            "reject_reasons": list(self.reasons),
+        }
+
+
+def numeric_values(status: Mapping[str, Any]) -> dict[str, float]:
+    """The numeric entries of a parsed diagnostics status (every key the node publishes,
+    counters added later included; text values such as ``message`` left out)."""
+    return {
+        k: float(v)
+        for k, v in status.items()
+        if isinstance(v, int | float) and not isinstance(v, bool)
+    }
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Pass/fail limits of a soak run."""
+
+    #: Largest RSS growth after the warm-up [MB/min], per node process.
+    max_slope_mb_per_min: float = 1.0
+    #: The slope is judged only when the samples after the warm-up span this long [min]:
+    #: over seconds an allocator step looks like a leak.
+    min_span_min: float = 2.0
+    #: Unsafe effort commands allowed (non-finite or beyond the URDF limits).
+    max_violations: int = 0
+
+
+@dataclass(frozen=True)
+class Criterion:
+    name: str
+    met: bool | None  # None: not judged (the run was too short for it)
+    detail: str
+
+
+def verdict(report: Mapping[str, Any], thresholds: Thresholds = Thresholds()) -> list[Criterion]:
+    """The criteria of a soak report (as written to soak.json): memory growth per node
+    process, unsafe commands, commands not checked, parameter updates answered as they
+    must be, diagnostics received and every node alive to the end."""
+    out = []
+    for name, mem in report["memory"].items():
+        if not mem.get("node", True):
+            continue
+        slope = mem["slope_mb_per_min"]
+        if mem["span_min"] < thresholds.min_span_min or math.isnan(slope):
+            met = None
+            detail = (
+                f"{slope:+.3f} MB/min over {mem['span_min']:.2f} min: not judged "
+                f"(needs {thresholds.min_span_min:g} min after the warm-up)"
+            )
+        else:
+            met = slope < thresholds.max_slope_mb_per_min
+            detail = f"{slope:+.3f} MB/min (limit {thresholds.max_slope_mb_per_min:g})"
+        out.append(Criterion(f"memory growth of {name}", met, detail))
+    cmd = report["commands"]
+    out.append(
+        Criterion(
+            "effort commands finite and within the URDF limits",
+            cmd["commands"] > 0 and cmd["violations"] <= thresholds.max_violations,
+            f"{cmd['violations']} violations in {cmd['commands']} commands",
+        )
+    )
+    ticks = report.get("controller_ticks")
+    if ticks is not None:
+        out.append(
+            Criterion(
+                "every controller tick's command checked",
+                cmd["commands"] >= ticks,
+                f"{cmd['commands']} commands checked, {int(ticks)} controller ticks",
+            )
+        )
+    upd = report["parameter_updates"]
+    out.append(
+        Criterion(
+            "every valid gain change accepted",
+            upd["valid_sent"] > 0 and upd["valid_accepted"] == upd["valid_sent"],
+            f"{upd['valid_accepted']}/{upd['valid_sent']} accepted",
+        )
+    )
+    out.append(
+        Criterion(
+            "every invalid update rejected, old values kept",
+            upd["invalid_sent"] > 0
+            and upd["invalid_rejected"] == upd["invalid_sent"]
+            and upd["old_values_kept_after_reject"] == upd["invalid_sent"],
+            f"{upd['invalid_rejected']}/{upd['invalid_sent']} rejected, "
+            f"{upd['old_values_kept_after_reject']} with the old values kept",
+        )
+    )
+    for node, count in report["diagnostics_received"].items():
+        out.append(
+            Criterion(
+                f"/diagnostics from {node}",
+                count > 0,
+                f"{count} statuses",
+            )
+        )
+    return out
+
+
+def passed(criteria: Sequence[Criterion]) -> bool:
+    """No criterion failed (the ones not judged do not count)."""
+    return all(c.met is not False for c in criteria)

@@ -1,0 +1,91 @@
+"""``jsc soak``: the realtime loop at 1 kHz for minutes with gains changed every second;
+prints the figures and the verdict, writes soak.json (wiring and printing only)."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from joint_space_control.experiments.soak import CONTROLLERS, SoakOptions
+from joint_space_control.experiments.soak import run as run_soak
+
+
+def _num(value: Any, fmt: str = "{:.0f}") -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "n/a"
+    return fmt.format(value)
+
+
+def format_report(report: dict[str, Any]) -> str:
+    """The soak figures as a plain-text table, then the criteria and the verdict."""
+    lines = [
+        f"soak {report['robot']} {report['controller']}: {report['duration_s'] / 60:.2f} min "
+        f"realtime at {report['rate_hz']:g} Hz, warm-up {report['warmup_s']:g} s, "
+        f"started {report['started_utc']}",
+        f"machine: {report['machine']['cpu']}, {report['machine']['cores']} cores, "
+        f"load {report['machine']['load_average_1_5_15']}, CPU steal "
+        + _num(report.get("cpu_steal_fraction"), "{:.1%}"),
+        "",
+        f"{'process':<30} {'RSS first':>10} {'start':>9} {'end':>9} {'max':>9} {'slope':>13}",
+    ]
+    for name, mem in report["memory"].items():
+        mb = [_num(mem[k], "{:.1f}") for k in ("first_mb", "start_mb", "end_mb", "max_mb")]
+        slope = _num(mem["slope_mb_per_min"], "{:+.3f}")
+        lines.append(
+            f"{name:<30} {mb[0]:>7} MB {mb[1]:>6} MB {mb[2]:>6} MB {mb[3]:>6} MB {slope:>6} MB/min"
+        )
+    ticks = "  ".join(f"{k} {_num(v)}" for k, v in report["ticks"].items())
+    cmd, upd = report["commands"], report["parameter_updates"]
+    lines += [
+        "",
+        f"ticks: {ticks}",
+        f"sim_bridge ticks late (> 200 us): {_num(report['late'])}, "
+        f"too late (> 1 ms): {_num(report['too_late'])}",
+        f"effort commands checked: {cmd['commands']}, violations: {cmd['violations']} "
+        f"(non-finite {cmd['non_finite']}, over limit {cmd['over_limit']}, unknown joints "
+        f"{cmd['unknown_joints']}), largest |tau|/limit {cmd['max_effort_over_limit']:.3f}",
+        f"gain changes accepted: {upd['valid_accepted']}/{upd['valid_sent']}; invalid updates "
+        f"rejected: {upd['invalid_rejected']}/{upd['invalid_sent']} (old values kept "
+        f"{upd['old_values_kept_after_reject']})",
+        "diagnostics received: "
+        + ", ".join(f"{k} {v}" for k, v in report["diagnostics_received"].items())
+        + "; WARN statuses: "
+        + (", ".join(f"{k} {v}" for k, v in report["diagnostics_warnings"].items()) or "none"),
+        "",
+        "final /diagnostics (every numeric key, since the first tick where total.*):",
+    ]
+    for node, values in report["diagnostics"].items():
+        lines.append(f"  {node}:")
+        items = [f"{k}={_num(v, '{:g}')}" for k, v in values.items()]
+        for k in range(0, len(items), 6):
+            lines.append("    " + "  ".join(items[k : k + 6]))
+    lines += ["", "criteria:"]
+    for c in report["criteria"]:
+        mark = {True: "PASS", False: "FAIL", None: "----"}[c["met"]]
+        lines.append(f"  [{mark}] {c['name']}: {c['detail']}")
+    lines.append(f"verdict: {'PASS' if report['passed'] else 'FAIL'}")
+    return "\n".join(lines)
+
+
+def run(out: Path, minutes: float, robot: str, law: str) -> int:
+    if law not in CONTROLLERS:
+        print(f"jsc soak: error: unknown controller '{law}'", file=sys.stderr)
+        return 2
+    if minutes <= 0:
+        print("jsc soak: error: --minutes must be > 0", file=sys.stderr)
+        return 2
+    options = SoakOptions(minutes=minutes, robot=robot, law=law)
+    try:
+        report = run_soak(out, options, lambda m: print(m, flush=True))
+    except KeyboardInterrupt:
+        print("jsc soak: interrupted; every process stopped", file=sys.stderr)
+        return 130
+    except (RuntimeError, TimeoutError, ValueError) as err:
+        print(f"jsc soak failed: {err}", file=sys.stderr)
+        return 1
+    print()
+    print(format_report(report))
+    print(f"\nwritten: {Path(out) / 'soak.json'}")
+    return 0 if report["passed"] else 1

@@ -1,0 +1,469 @@
+"""A soak run: the realtime loop at 1 kHz for minutes, gains changed every second.
+
+``sim_bridge`` (realtime, 1 kHz physics and joint states) and one controller answering every
+joint state run as separate processes in a leased ROS domain with localhost discovery. An
+observer node in this process
+
+- sends smooth moves between two configurations inside the joint limits (a one-point
+  trajectory reached after :data:`MOVE_TIME` seconds, a new one every :data:`MOVE_PERIOD`),
+- changes the controller's ``kp``/``kd`` every second through the standard parameter services
+  (``AsyncParameterClient``, what ``ros2 param set`` uses), alternating two valid sets, and
+  every tenth second also sends one invalid update (a negative ``kp``) that must be rejected
+  with the old values kept,
+- checks every effort command it receives (finite, within the URDF effort limits),
+- samples the resident memory (VmRSS) of every node process and of itself,
+- keeps the newest ``/diagnostics`` status of each node.
+
+At the end the simulator is paused, the last commands and the final diagnostics collected and
+every process stopped (also on an error or Ctrl-C). The figures and the verdict come from
+:mod:`joint_space_control.analysis.soak_metrics`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rclpy
+import rclpy.duration
+from builtin_interfaces.msg import Duration
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.executors import ShutdownException, SingleThreadedExecutor, TimeoutException
+from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from joint_space_control.analysis.soak_metrics import (
+    CommandAudit,
+    Thresholds,
+    UpdateTally,
+    memory_summary,
+    numeric_values,
+    parse_vmrss,
+    passed,
+    verdict,
+)
+from joint_space_control.experiments.domains import lease_domain
+from joint_space_control.experiments.processes import ProcessGroup
+from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.model.robots import resolve_robot
+from joint_space_control.nodes.control_path import ControlPath
+from joint_space_control.nodes.diagnostics import DIAGNOSTICS_QOS, statuses
+from joint_space_control.nodes.messages import REFERENCE_QOS
+from joint_space_control.nodes.wire import JointStateImage
+
+CONTROLLERS = {
+    "pd_gravity": "pd_gravity_controller",
+    "inverse_dynamics": "inverse_dynamics_controller",
+}
+#: Two valid gain sets per law, alternated every second. PD: torque gains [N·m/rad,
+#: N·m·s/rad], well damped at 1 kHz on every built-in robot (as in ``jsc bench``); inverse
+#: dynamics: accelerations per error (ω_n = 20 and 30 rad/s, ζ = 1).
+GAIN_SETS = {
+    "pd_gravity": ({"kp": 100.0, "kd": 10.0}, {"kp": 150.0, "kd": 12.0}),
+    "inverse_dynamics": ({"kp": 400.0, "kd": 40.0}, {"kp": 900.0, "kd": 60.0}),
+}
+#: The invalid update sent every tenth second (K_P must be > 0).
+INVALID_UPDATE = {"kp": -1.0}
+#: Seconds between gain changes, and every how many changes an invalid one follows.
+CHANGE_PERIOD = 1.0
+INVALID_EVERY = 10
+#: Reference: a new target every MOVE_PERIOD seconds, reached (at rest) MOVE_TIME after it.
+MOVE_PERIOD = 4.0
+MOVE_TIME = 2.0
+#: Targets: the middle of each joint's range ± this fraction of the range (±0.5 rad when a
+#: joint has no limits).
+MOVE_FRACTION = 0.15
+#: Seconds between memory samples; default warm-up [s] left out of the growth fit.
+SAMPLE_PERIOD = 2.0
+WARMUP = 10.0
+#: Wait [s] for a command before the observer serves the rest (parameters, diagnostics).
+OBSERVED_WAIT = 0.005
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10000, reliability=ReliabilityPolicy.RELIABLE
+)
+
+
+@dataclass(frozen=True)
+class SoakOptions:
+    minutes: float = 10.0
+    robot: str = "iiwa"
+    law: str = "inverse_dynamics"
+    warmup: float = WARMUP  # [s]; at most a third of a short run
+    sample_period: float = SAMPLE_PERIOD
+    thresholds: Thresholds = Thresholds()
+
+    @property
+    def seconds(self) -> float:
+        return self.minutes * 60.0
+
+    @property
+    def warmup_s(self) -> float:
+        return min(self.warmup, self.seconds / 3.0)
+
+
+def move_targets(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two configurations inside the limits: mid-range ± MOVE_FRACTION of the range,
+    alternating in sign from joint to joint (±0.5 rad around 0 for unbounded joints)."""
+    bounded = np.isfinite(lower) & np.isfinite(upper)
+    mid = np.where(bounded, 0.5 * (lower + upper), 0.0)
+    half = np.where(bounded, MOVE_FRACTION * (upper - lower), 0.5)
+    sign = np.where(np.arange(lower.size) % 2 == 0, 1.0, -1.0)
+    return mid + sign * half, mid - sign * half
+
+
+def rss_of(pid: int) -> int | None:
+    """VmRSS [bytes] of a process, None when it is gone."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            return parse_vmrss(f.read())
+    except OSError:
+        return None
+
+
+class SoakObserver:
+    """The observer node, in its own rclpy context in the run's domain: effort commands
+    through a dedicated wait-set loop (every one of them, 1 kHz), the rest (parameters,
+    services, /diagnostics) through an executor served between them."""
+
+    def __init__(self, domain_id: int, audit: CommandAudit) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node(f"jsc_soak_{domain_id}", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.audit = audit
+        self._image: JointStateImage | None = None
+        self._commands = ControlPath(self.node)
+        self._commands.subscription(
+            JointState, "effort_command", self._on_command, COMMAND_QOS, raw=True, drain=True
+        )
+        self.latest: dict[str, dict[str, float | str]] = {}
+        self.received: dict[str, int] = {}
+        self.warnings: dict[str, int] = {}
+        self.node.create_subscription(
+            DiagnosticArray, "/diagnostics", self._on_diagnostics, DIAGNOSTICS_QOS
+        )
+        self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
+        self._params: dict[str, AsyncParameterClient] = {}
+
+    def _on_command(self, raw: bytes, info: object = None) -> None:
+        image = self._image
+        if image is None or not image.matches(raw):
+            msg = deserialize_message(raw, JointState)
+            image = self._image = JointStateImage.like(msg)
+        self.audit.check(image.names, image.read(raw, 2))
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for name, status in statuses(msg).items():
+            self.latest[name] = status
+            self.received[name] = self.received.get(name, 0) + 1
+            if status.get("level", 0) != 0:
+                self.warnings[name] = self.warnings.get(name, 0) + 1
+
+    # -- spinning ----------------------------------------------------------------------
+    def spin_until(
+        self, done: Callable[[], bool], timeout: float, what: str, check: Callable[[], None]
+    ) -> None:
+        end = time.monotonic() + timeout
+        while not done():
+            if time.monotonic() > end:
+                raise TimeoutError(f"timed out after {timeout:g} s waiting for {what}")
+            check()
+            self.spin_once()
+
+    def spin_once(self) -> None:
+        """Commands for at most OBSERVED_WAIT, then everything else that is ready."""
+        self._commands.spin_once(OBSERVED_WAIT)
+        for _ in range(1000):
+            try:
+                handler, _, _ = self.executor.wait_for_ready_callbacks(0)
+            except (TimeoutException, ShutdownException):
+                return
+            handler()
+            if handler.exception() is not None:
+                raise handler.exception()
+
+    # -- the graph and the loop ----------------------------------------------------------
+    def wait_for_loop(self, controller: str, check: Callable[[], None]) -> None:
+        n = self.node
+        for name in (controller, "sim_bridge"):
+            self._params[name] = AsyncParameterClient(n, name)
+        self.spin_until(
+            lambda: (
+                n.count_publishers("joint_states") >= 1
+                and n.count_subscribers("joint_states") >= 1
+                and n.count_publishers("effort_command") >= 1
+                and n.count_subscribers("effort_command") >= 2  # sim_bridge and this
+                and self._ref_pub.get_subscription_count() >= 1
+                and all(c.services_are_ready() for c in self._params.values())
+            ),
+            60.0,
+            "the simulator and the controller to connect",
+            check,
+        )
+
+    def send_target(self, joints: Sequence[str], target: np.ndarray, move_time: float) -> None:
+        """A one-point trajectory reached at rest ``move_time`` after receipt."""
+        sec, nsec = divmod(round(move_time * 1e9), 1_000_000_000)
+        msg = JointTrajectory(joint_names=list(joints))
+        msg.points = [
+            JointTrajectoryPoint(
+                positions=[float(p) for p in target],
+                time_from_start=Duration(sec=sec, nanosec=nsec),
+            )
+        ]
+        self._ref_pub.publish(msg)
+
+    def trigger(self, service: str, check: Callable[[], None], timeout: float = 10.0) -> None:
+        client = self.node.create_client(Trigger, service)
+        try:
+            self.spin_until(client.service_is_ready, timeout, f"service {service}", check)
+            future = client.call_async(Trigger.Request())
+            self.spin_until(future.done, timeout, f"answer of {service}", check)
+            if not future.result().success:
+                raise RuntimeError(f"{service}: {future.result().message}")
+        finally:
+            self.node.destroy_client(client)
+
+    def set_parameters(
+        self, node: str, values: dict[str, Any], check: Callable[[], None]
+    ) -> list[Any]:
+        """SetParametersResult per parameter, as the node answered."""
+        future = self._params[node].set_parameters(
+            [Parameter(k, value=v) for k, v in values.items()]
+        )
+        self.spin_until(future.done, 10.0, f"set_parameters on {node}", check)
+        return list(future.result().results)
+
+    def get_parameters(self, node: str, names: list[str], check: Callable[[], None]) -> list:
+        future = self._params[node].get_parameters(names)
+        self.spin_until(future.done, 10.0, f"get_parameters on {node}", check)
+        return [parameter_value_to_python(v) for v in future.result().values]
+
+    def close(self) -> None:
+        self._commands.close()
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def run(
+    out: Path, options: SoakOptions = SoakOptions(), log: Callable[[str], None] = print
+) -> dict[str, Any]:
+    """Run the soak, write ``out/soak.json`` and return the report (with its verdict)."""
+    from joint_space_control.bench.machine import StealMeter, machine, versions
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if options.law not in CONTROLLERS:
+        raise ValueError(f"unknown controller law '{options.law}'; known: {list(CONTROLLERS)}")
+    controller = CONTROLLERS[options.law]
+    model = RobotModel(resolve_robot(options.robot, ""))
+    joints = model.joint_names
+    targets = move_targets(*model.position_limits)
+    gains = GAIN_SETS[options.law]
+    audit = CommandAudit(joints, model.effort_limits)
+    tally = UpdateTally()
+    started_utc = datetime.now(UTC).isoformat(timespec="seconds")
+    memory: dict[str, tuple[list[float], list[int]]] = {}
+    log(
+        f"soak: {options.robot} {controller}, realtime 1 kHz, {options.minutes:g} min "
+        f"(warm-up {options.warmup_s:g} s), gains changed every {CHANGE_PERIOD:g} s"
+    )
+    with lease_domain() as lease, ProcessGroup(out / "logs", lease.domain_id) as group:
+        check = group.check_alive
+        group.start(
+            "sim_bridge",
+            {
+                "robot": options.robot,
+                "mode": "realtime",
+                "physics_rate": 1000.0,
+                "publish_rate": 1000.0,
+                "start_paused": True,
+                "command_timeout": 0.1,
+            },
+        )
+        group.start(controller, {"robot": options.robot, "trigger": "state", **gains[0]})
+        observer = SoakObserver(lease.domain_id, audit)
+        try:
+            observer.wait_for_loop(controller, check)
+            pids = {name: node.proc.pid for name, node in group.nodes.items()}
+            pids["jsc soak (observer)"] = os.getpid()
+            memory = {name: ([], []) for name in pids}
+            observer.trigger("/sim_bridge/resume", check)
+            steal = StealMeter()
+            t0 = time.monotonic()
+            next_change, next_move, next_sample = 0.0, 0.0, 0.0
+            changes, moves = 0, 0
+            last_report = 0.0
+            while (now := time.monotonic() - t0) < options.seconds:
+                check()
+                if now >= next_move:
+                    observer.send_target(joints, targets[moves % 2], MOVE_TIME)
+                    moves += 1
+                    next_move += MOVE_PERIOD
+                if now >= next_sample:
+                    for name, pid in pids.items():
+                        rss = rss_of(pid)
+                        if rss is not None:
+                            memory[name][0].append(now)
+                            memory[name][1].append(rss)
+                    next_sample += options.sample_period
+                if now >= next_change:
+                    changes += 1
+                    new = gains[changes % 2]
+                    results = observer.set_parameters(controller, new, check)
+                    tally.valid(all(r.successful for r in results))
+                    if changes % INVALID_EVERY == 0:
+                        (result,) = observer.set_parameters(controller, INVALID_UPDATE, check)
+                        kept = observer.get_parameters(controller, list(new), check)
+                        tally.invalid(
+                            not result.successful,
+                            result.reason,
+                            all(np.allclose(k, new[n]) for k, n in zip(kept, new, strict=True)),
+                        )
+                    next_change += CHANGE_PERIOD
+                if now - last_report >= 60.0:
+                    last_report = now
+                    log(_progress(now, options.seconds, audit, tally, observer, controller))
+                observer.spin_once()
+            duration = time.monotonic() - t0
+            cpu_steal = steal.fraction()
+            for name, pid in pids.items():  # the last sample, at the end of the run
+                rss = rss_of(pid)
+                if rss is not None:
+                    memory[name][0].append(duration)
+                    memory[name][1].append(rss)
+            # Stop the loop, take the commands still in flight, then wait for diagnostics
+            # of an idle window: their totals are final.
+            observer.trigger("/sim_bridge/pause", check)
+            paused_at = {k: v for k, v in observer.received.items()}
+            observer.spin_until(
+                lambda: all(
+                    observer.received.get(name, 0) > paused_at.get(name, 0)
+                    and float(observer.latest[name].get("ticks", 1.0)) == 0.0
+                    for name in (f"{controller}: control loop", "sim_bridge: control loop")
+                ),
+                30.0,
+                "the final diagnostics",
+                check,
+            )
+            end = time.monotonic() + 0.5
+            observer.spin_until(lambda: time.monotonic() >= end, 5.0, "the last commands", check)
+        finally:
+            observer.close()
+    report = _report(
+        options, controller, duration, memory, observer, audit, tally, started_utc, cpu_steal
+    )
+    report["machine"], report["versions"] = machine(), versions()
+    criteria = verdict(report, options.thresholds)
+    report["criteria"] = [{"name": c.name, "met": c.met, "detail": c.detail} for c in criteria]
+    report["passed"] = passed(criteria)
+    (out / "soak.json").write_text(json.dumps(_plain(report), indent=2) + "\n")
+    return report
+
+
+def _progress(
+    now: float,
+    total: float,
+    audit: CommandAudit,
+    tally: UpdateTally,
+    observer: SoakObserver,
+    controller: str,
+) -> str:
+    sim = observer.latest.get("sim_bridge: control loop", {})
+    return (
+        f"  {now / 60:5.1f}/{total / 60:g} min: {audit.commands} commands, "
+        f"{audit.violations} violations, {tally.valid_accepted}/{tally.valid_sent} changes "
+        f"accepted, {tally.invalid_rejected}/{tally.invalid_sent} invalid rejected, "
+        f"sim late {sim.get('total.late', 'n/a')}, too late {sim.get('total.too_late', 'n/a')}"
+    )
+
+
+def _report(
+    options: SoakOptions,
+    controller: str,
+    duration: float,
+    memory: dict[str, tuple[list[float], list[int]]],
+    observer: SoakObserver,
+    audit: CommandAudit,
+    tally: UpdateTally,
+    started_utc: str,
+    cpu_steal: float | None,
+) -> dict[str, Any]:
+    diagnostics = {
+        name.removesuffix(": control loop"): numeric_values(status)
+        for name, status in observer.latest.items()
+    }
+    ctrl = diagnostics.get(controller, {})
+    sim = diagnostics.get("sim_bridge", {})
+    mem = {}
+    for name, (times, rss) in memory.items():
+        mem[name] = {
+            **memory_summary(times, rss, options.warmup_s),
+            "node": name != "jsc soak (observer)",
+        }
+    return {
+        "started_utc": started_utc,
+        "robot": options.robot,
+        "controller": controller,
+        "law": options.law,
+        "sim_mode": "realtime",
+        "rate_hz": 1000.0,
+        "trigger": "state",
+        "minutes_requested": options.minutes,
+        "duration_s": duration,
+        "warmup_s": options.warmup_s,
+        "sample_period_s": options.sample_period,
+        "gain_sets": list(GAIN_SETS[options.law]),
+        "invalid_update": INVALID_UPDATE,
+        "memory": mem,
+        "ticks": {
+            "sim_bridge": sim.get("total.ticks", math.nan),
+            controller: ctrl.get("total.ticks", math.nan),
+        },
+        "late": sim.get("total.late", math.nan),
+        "too_late": sim.get("total.too_late", math.nan),
+        "controller_ticks": ctrl.get("total.ticks"),
+        "commands": audit.figures(),
+        "parameter_updates": tally.figures(),
+        "diagnostics_received": {
+            name.removesuffix(": control loop"): count for name, count in observer.received.items()
+        },
+        "diagnostics_warnings": {
+            name.removesuffix(": control loop"): count for name, count in observer.warnings.items()
+        },
+        "diagnostics": diagnostics,
+        "cpu_steal_fraction": cpu_steal,
+        "thresholds": {
+            "max_slope_mb_per_min": options.thresholds.max_slope_mb_per_min,
+            "min_span_min": options.thresholds.min_span_min,
+            "max_violations": options.thresholds.max_violations,
+        },
+    }
+
+
+def _plain(value: Any) -> Any:
+    """Strict JSON: NumPy values as Python ones, NaN and infinities as null."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple | np.ndarray):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

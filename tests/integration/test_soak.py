@@ -1,0 +1,68 @@
+"""``jsc soak`` end to end, short: the realtime loop with gains changed every second. Checks
+the report (updates answered as they must be, commands checked and safe, memory figures
+present) and that every process is stopped; no timing is asserted (shared machine)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+
+import pytest
+
+pytestmark = pytest.mark.integration
+
+
+def test_short_soak_reports_every_figure(tmp_path):
+    out = tmp_path / "soak"
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    cmd = [sys.executable, "-m", "joint_space_control.cli.main", "soak", "--minutes", "0.25"]
+    proc = subprocess.Popen(
+        [*cmd, "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        stdout, stderr = proc.communicate(timeout=180)
+    finally:
+        if proc.poll() is None:  # Ctrl-C: jsc soak stops its nodes, then exits
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.communicate(timeout=60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.communicate()
+    assert proc.returncode == 0, stdout[-3000:] + stderr[-3000:]
+    assert "verdict: PASS" in stdout
+
+    report = json.loads((out / "soak.json").read_text())
+    assert report["passed"] is True
+    updates = report["parameter_updates"]
+    assert updates["valid_sent"] >= 10 and updates["valid_accepted"] == updates["valid_sent"]
+    assert updates["invalid_sent"] >= 1
+    assert updates["invalid_rejected"] == updates["invalid_sent"]
+    assert updates["old_values_kept_after_reject"] == updates["invalid_sent"]
+    assert updates["reject_reasons"]
+    commands = report["commands"]
+    assert commands["commands"] > 0 and commands["violations"] == 0
+    assert commands["commands"] >= report["controller_ticks"] > 0
+    controller = report["controller"]
+    assert set(report["memory"]) == {"sim_bridge", controller, "jsc soak (observer)"}
+    for name, mem in report["memory"].items():
+        for key in ("first_mb", "start_mb", "end_mb", "max_mb", "slope_mb_per_min"):
+            assert mem[key] is not None and mem[key] > -1e9, (name, key)
+        assert mem["start_mb"] > 10.0 and mem["max_mb"] >= mem["end_mb"]
+    assert report["ticks"]["sim_bridge"] > 0 and report["ticks"][controller] > 0
+    assert report["late"] is not None and report["too_late"] is not None
+    for node in ("sim_bridge", controller):
+        assert report["diagnostics_received"][node] > 0
+        assert report["diagnostics"][node]["total.ticks"] > 0
+    assert report["machine"]["cpu"] and report["duration_s"] > 0
+
+    # every process the soak started is gone
+    ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
+    assert str(out) not in ps  # node processes (their parameter files are under out/)

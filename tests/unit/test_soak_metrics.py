@@ -1,0 +1,179 @@
+"""Soak figures and verdict (no ROS): VmRSS parsing, the least-squares growth slope, the
+command audit against the effort limits, the update tally and the pass/fail criteria."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from joint_space_control.analysis.soak_metrics import (
+    MB,
+    CommandAudit,
+    Thresholds,
+    UpdateTally,
+    memory_summary,
+    numeric_values,
+    parse_vmrss,
+    passed,
+    slope_per_minute,
+    verdict,
+)
+
+STATUS = """Name:\tpython
+VmPeak:\t  400000 kB
+VmHWM:\t  180000 kB
+VmRSS:\t  171712 kB
+RssAnon:\t   90000 kB
+"""
+
+
+def test_vmrss_in_bytes():
+    assert parse_vmrss(STATUS) == 171712 * 1024
+    assert parse_vmrss("Name:\tzombie\nState:\tZ (zombie)\n") is None
+
+
+def test_slope_of_a_line_is_exact_per_minute():
+    t = np.arange(0.0, 600.0, 2.0)
+    y = 150.0 + 0.25 * t / 60.0  # 0.25 MB/min
+    assert slope_per_minute(t, y) == pytest.approx(0.25, rel=1e-12)
+    assert slope_per_minute(t, np.full_like(t, 7.0)) == 0.0
+
+
+def test_slope_is_the_least_squares_one():
+    t = np.array([0.0, 60.0, 120.0, 180.0])
+    y = np.array([1.0, 3.0, 2.0, 5.0])
+    assert slope_per_minute(t, y) == pytest.approx(np.polyfit(t / 60.0, y, 1)[0], rel=1e-12)
+
+
+def test_slope_needs_two_distinct_times():
+    assert math.isnan(slope_per_minute([], []))
+    assert math.isnan(slope_per_minute([3.0], [1.0]))
+    assert math.isnan(slope_per_minute([3.0, 3.0], [1.0, 2.0]))
+
+
+def test_memory_summary_leaves_the_warm_up_out_of_the_fit():
+    t = np.arange(0.0, 300.0, 2.0)
+    rss = np.where(t < 10.0, 100e6 + t * 2e6, 120e6)  # grows during warm-up, then flat
+    rss[-1] += 0.5e6  # one last allocator step
+    m = memory_summary(t, rss, warmup_s=10.0)
+    assert m["samples"] == t.size and m["samples_after_warmup"] == np.sum(t >= 10.0)
+    assert m["first_mb"] == 100.0 and m["start_mb"] == 120.0 and m["end_mb"] == 120.5
+    assert m["max_mb"] == 120.5 and m["growth_mb"] == pytest.approx(0.5)
+    assert m["span_min"] == pytest.approx((298.0 - 10.0) / 60.0)
+    assert 0.0 < m["slope_mb_per_min"] < 0.01
+    leak = memory_summary(t, 100e6 + t / 60.0 * 2 * MB, warmup_s=10.0)
+    assert leak["slope_mb_per_min"] == pytest.approx(2.0)
+
+
+def test_memory_summary_without_samples_after_warm_up():
+    m = memory_summary([0.0, 1.0], [1e6, 2e6], warmup_s=10.0)
+    assert math.isnan(m["start_mb"]) and math.isnan(m["slope_mb_per_min"])
+    assert m["span_min"] == 0.0 and m["max_mb"] == 2.0
+
+
+def test_command_audit_checks_limits_by_name():
+    audit = CommandAudit(("a", "b"), np.array([10.0, 2.0]))
+    assert audit.check(("a", "b"), np.array([10.0, -2.0]))  # on the limit is fine
+    assert audit.check(("b", "a"), np.array([-2.0, 9.0]))  # any order, by name
+    assert not audit.check(("b", "a"), np.array([3.0, 0.0]))  # b beyond 2 N·m
+    assert not audit.check(("a", "b"), np.array([np.nan, 0.0]))
+    assert not audit.check(("a", "b"), np.array([0.0, np.inf]))
+    assert not audit.check(("a", "c"), np.array([0.0, 0.0]))  # unknown joint
+    assert not audit.check(("a",), np.array([0.0, 0.0]))  # sizes differ
+    f = audit.figures()
+    assert f["commands"] == 7 and f["violations"] == 5
+    assert (f["over_limit"], f["non_finite"], f["unknown_joints"]) == (1, 2, 2)
+    assert f["max_effort_over_limit"] == pytest.approx(1.5)
+    assert len(f["examples"]) == 5
+
+
+def test_update_tally():
+    tally = UpdateTally()
+    tally.valid(True)
+    tally.valid(False)
+    tally.invalid(True, "kp must be > 0", kept=True)
+    tally.invalid(True, "kp must be > 0", kept=False)
+    tally.invalid(False, "", kept=True)
+    f = tally.figures()
+    assert (f["valid_sent"], f["valid_accepted"]) == (2, 1)
+    assert (f["invalid_sent"], f["invalid_rejected"]) == (3, 2)
+    assert f["old_values_kept_after_reject"] == 1
+    assert f["reject_reasons"] == ["kp must be > 0"]
+
+
+def test_numeric_values_keep_every_number_and_only_numbers():
+    status = {"level": 0, "message": "ok", "hardware_id": "iiwa", "ticks": 1000.0}
+    status |= {"rejected.new_counter": 3.0, "trigger": "state", "flag": True, "x": math.nan}
+    values = numeric_values(status)
+    assert set(values) == {"level", "ticks", "rejected.new_counter", "x"}
+    assert values["rejected.new_counter"] == 3.0
+
+
+def _report(**changes):
+    mem = {"slope_mb_per_min": 0.1, "span_min": 9.8, "node": True}
+    report = {
+        "memory": {
+            "sim_bridge": dict(mem),
+            "controller": dict(mem),
+            "observer": {**mem, "slope_mb_per_min": 50.0, "node": False},
+        },
+        "commands": {"commands": 1000, "violations": 0},
+        "controller_ticks": 1000.0,
+        "parameter_updates": {
+            "valid_sent": 600,
+            "valid_accepted": 600,
+            "invalid_sent": 60,
+            "invalid_rejected": 60,
+            "old_values_kept_after_reject": 60,
+        },
+        "diagnostics_received": {"sim_bridge": 600, "controller": 600},
+    }
+    for key, value in changes.items():
+        path = key.split("__")
+        target = report
+        for part in path[:-1]:
+            target = target[part]
+        target[path[-1]] = value
+    return report
+
+
+def test_a_clean_run_passes_and_the_observer_is_not_judged():
+    criteria = verdict(_report())
+    assert passed(criteria) and all(c.met is True for c in criteria)
+    assert not any("observer" in c.name for c in criteria)
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"memory__controller__slope_mb_per_min": 1.5},
+        {"commands__violations": 1},
+        {"commands__commands": 0},
+        {"controller_ticks": 1001.0},
+        {"parameter_updates__valid_accepted": 599},
+        {"parameter_updates__invalid_rejected": 59},
+        {"parameter_updates__old_values_kept_after_reject": 59},
+        {"parameter_updates__invalid_sent": 0},
+        {"diagnostics_received__sim_bridge": 0},
+    ],
+)
+def test_each_failure_fails_the_run(change):
+    criteria = verdict(_report(**change))
+    assert not passed(criteria)
+    assert any(c.met is False for c in criteria)
+
+
+def test_memory_of_a_short_run_is_reported_but_not_judged():
+    report = _report(memory__sim_bridge__span_min=0.3, memory__sim_bridge__slope_mb_per_min=5.0)
+    criteria = verdict(report)
+    (mem,) = [c for c in criteria if c.name == "memory growth of sim_bridge"]
+    assert mem.met is None and "not judged" in mem.detail
+    assert passed(criteria)
+
+
+def test_thresholds_are_parameters():
+    report = _report(memory__controller__slope_mb_per_min=0.5)
+    assert passed(verdict(report))
+    assert not passed(verdict(report, Thresholds(max_slope_mb_per_min=0.4)))
