@@ -64,6 +64,8 @@ from sim_bridge import pacing
 from sim_bridge.plant import Plant
 
 MODES = ("realtime", "lockstep")
+#: The safety counters of the plant (on /diagnostics; README "Safety").
+COUNTERS = ("rejected.commands", "brake.engaged")
 #: Recent states whose publication time is kept for the command latency (realtime).
 SENT_HISTORY = 64
 #: Realtime: a tick this far behind its schedule [ns] resets the schedule (machine stalled).
@@ -104,6 +106,13 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
     ),
     params.ParamSpec(
         "command_timeout", 0.1, "Realtime: brake when no valid command for this long [s], > 0"
+    ),
+    params.ParamSpec(
+        "max_torque_rate",
+        0.0,
+        "Torque-rate limit [N·m/s] on the applied torque, one value or one per joint, >= 0 "
+        "(0: off)",
+        dynamic=True,
     ),
     params.ParamSpec(
         "republish_period",
@@ -154,6 +163,9 @@ class SimBridge(Node):
             locked_positions=model.locked_positions,
             gui=bool(v["gui"]),
         )
+        self.plant.set_torque_rate_limit(
+            nonnegative(params.numbers(v, "max_torque_rate"), self.n, "max_torque_rate")
+        )
         for warning in self.plant.warnings:
             self.get_logger().warning(warning)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -168,6 +180,8 @@ class SimBridge(Node):
         self._paused = bool(v["start_paused"])
         self._pause_at_ns = self._pause_time(v)
         self._braking = True
+        self._timed_out = False  # braking because commands stopped (not before the first)
+        self.counts = dict.fromkeys(COUNTERS, 0)
         self._running = True
         # Command latency: when each recent state was published (perf_counter ns).
         self._sent_stamp = array.array("q", [-1] * SENT_HISTORY)
@@ -191,7 +205,7 @@ class SimBridge(Node):
             Float64MultiArray, "~/commands", self._on_array, CONTROL_QOS
         )
         self._diagnostics = LoopDiagnostics(
-            self, self.loop_stats, spec.name, self._diagnostic_values
+            self, self.loop_stats, spec.name, self._diagnostic_values, self._alarm
         )
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(Trigger, "~/pause", self._on_pause)
@@ -220,11 +234,15 @@ class SimBridge(Node):
             payload = params.nonnegative_number(values, "payload_mass")
             timeout = params.positive(values, "command_timeout")
             pause_at = self._pause_time(values)
+            max_rate = nonnegative(
+                params.numbers(values, "max_torque_rate"), self.n, "max_torque_rate"
+            )
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
         with self._lock:
             self.plant.set_friction(friction)
+            self.plant.set_torque_rate_limit(max_rate)
             if payload != self.plant.payload_mass:
                 self.plant.set_payload(payload)
             self.command_timeout = timeout
@@ -243,7 +261,14 @@ class SimBridge(Node):
             "mode": self.mode,
             "sim_time_s": self._t_ns * 1e-9,
             "real_time_factor": summary["rate_hz"] * self._tick_sim_ns * 1e-9,
+            "braking": int(self.mode == "realtime" and self._braking),
+            **self.counts,
         }
+
+    def _alarm(self) -> str | None:
+        if self._timed_out:
+            return f"no valid command for {self.command_timeout} s: brakes engaged"
+        return None
 
     # -- publishing --------------------------------------------------------------------
     def _publish_state(self) -> None:
@@ -288,6 +313,7 @@ class SimBridge(Node):
         try:
             stamp, (tau,) = self._effort_reader.read(raw)
         except ValueError as err:
+            self.counts["rejected.commands"] += 1
             self.get_logger().warning(f"rejected effort command: {err}", throttle_duration_sec=1.0)
             return
         self._command(tau, stamp, received)
@@ -297,6 +323,7 @@ class SimBridge(Node):
         try:
             tau = float_array(msg, self.n)
         except ValueError as err:
+            self.counts["rejected.commands"] += 1
             self.get_logger().warning(f"rejected command array: {err}", throttle_duration_sec=1.0)
             return
         self._command(tau, None, received)
@@ -354,14 +381,15 @@ class SimBridge(Node):
         if fresh:
             if self._braking:
                 self.get_logger().info("valid commands: torque control")
-                self._braking = False
+                self._braking = self._timed_out = False
             self.plant.step(self._tau, 1)
         else:
             if not self._braking:
                 self.get_logger().warning(
                     f"no valid command for {self.command_timeout} s: brakes engaged"
                 )
-                self._braking = True
+                self._braking = self._timed_out = True
+                self.counts["brake.engaged"] += 1
             self.plant.brake(1)
         self._t_ns += self.physics_dt_ns
 

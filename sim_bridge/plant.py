@@ -30,6 +30,7 @@ import numpy as np
 import pybullet as pb
 
 from joint_space_control.arrays import nonnegative, per_joint
+from joint_space_control.laws.limits import limit_rate, rate_steps
 from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
 
 GRAVITY = (0.0, 0.0, -9.81)
@@ -108,6 +109,7 @@ class Plant:
             [by_name[name][1][10] if by_name[name][1][10] > 0 else np.inf for name in joints]
         )
         self._lowest_effort = -self.effort_limits
+        self._max_step: np.ndarray | None = None  # torque-rate limit per physics step [N·m]
         for link in range(-1, pb.getNumJoints(self.body, c)):
             pb.changeDynamics(
                 self.body,
@@ -170,6 +172,13 @@ class Plant:
         self.friction = nonnegative(friction, self.n, "viscous_friction")
         self._has_friction = bool(np.any(self.friction))
 
+    def set_torque_rate_limit(self, max_rate: float | Sequence[float]) -> None:
+        """Limit the change of the applied torque to ``max_rate`` [N·m/s] per joint (0: no
+        limit), from whatever was applied last, braking included."""
+        rates = np.broadcast_to(np.asarray(max_rate, dtype=float), (self.n,))
+        steps = rate_steps(rates, self.dt)
+        self._max_step = None if np.all(np.isinf(steps)) else steps
+
     def set_payload(self, mass: float) -> None:
         if not np.isfinite(mass) or mass < 0:
             raise ValueError("payload_mass must be a finite value >= 0")
@@ -209,11 +218,16 @@ class Plant:
         effort[:] = self._effort
 
     def step(self, tau: np.ndarray, substeps: int = 1) -> None:
-        """Hold the motor torque tau (clamped to the effort limits) over ``substeps`` physics
-        steps, adding the viscous friction −F q̇ evaluated at each sub-step."""
-        tau = np.clip(tau, self._lowest_effort, self.effort_limits)
+        """Hold the motor torque tau (clamped to the effort limits, and approached at the
+        torque-rate limit if one is set) over ``substeps`` physics steps, adding the viscous
+        friction −F q̇ evaluated at each sub-step."""
+        target = np.clip(tau, self._lowest_effort, self.effort_limits)
+        tau = target
         c, body, idx = self.client, self.body, self._idx
         for _ in range(substeps):
+            if self._max_step is not None:
+                tau = limit_rate(target, self._effort, self._max_step)
+                self._effort = tau
             if self._has_friction:
                 _, dq, _, _ = zip(*pb.getJointStates(body, idx, physicsClientId=c), strict=True)
                 applied = tau - self.friction * np.array(dq)

@@ -51,6 +51,15 @@ from joint_space_control.nodes.wire import Float64ArrayImage, JointStateImage, J
 from joint_space_control.trajectories.reference import Reference, Sample, Trajectory
 
 TRIGGERS = ("timer", "state")
+#: The safety counters of a controller (on /diagnostics; README "Safety").
+COUNTERS = (
+    "rejected.joint_states",
+    "rejected.references",
+    "rejected.parameters",
+    "dropped.nonfinite_torques",
+    "stale.stops",
+    "restarts",
+)
 #: Longest time step integrated at once [s]; longer gaps (start-up, pauses) are cut.
 MAX_DT = 0.1
 
@@ -165,6 +174,8 @@ class JointController(Node):
         self._command_bytes = b""
         self._state = Float64ArrayImage(state_message(self.joints), 1 + len(STATE_FIELDS) * self.n)
         self._silent = False
+        # Safety counters, on /diagnostics (README "Safety").
+        self.counts = dict.fromkeys(COUNTERS, 0)
         self._nominal_ns = round(1e9 / rate) if self.trigger == "timer" else -1
         self.loop_stats = LoopStatistics()
 
@@ -186,7 +197,7 @@ class JointController(Node):
         if self.trigger == "timer":
             self.control_path.timer(1.0 / rate, self._on_timer)
         self._diagnostics = LoopDiagnostics(
-            self, self.loop_stats, spec.name, lambda summary: {"trigger": self.trigger}
+            self, self.loop_stats, spec.name, self._diagnostic_values, self._alarm
         )
         self.get_logger().info(
             f"{node_name}: {spec.name}, joints {list(self.joints)}, trigger={self.trigger}"
@@ -222,6 +233,7 @@ class JointController(Node):
             config = self.build_config(values, model)
             timeout = params.positive(values, "state_timeout")
         except ValueError as err:
+            self.counts["rejected.parameters"] += 1
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
         with self._lock:  # between two ticks
@@ -233,6 +245,15 @@ class JointController(Node):
             "parameters updated: " + ", ".join(f"{p.name}={p.value}" for p in changes)
         )
         return SetParametersResult(successful=True)
+
+    def _diagnostic_values(self, summary: Any) -> dict[str, Any]:
+        return {"trigger": self.trigger, "commanding": int(not self._silent), **self.counts}
+
+    def _alarm(self) -> str | None:
+        """Why the controller is not doing its job right now (an ERROR on /diagnostics)."""
+        if self._silent:
+            return f"no joint state for more than {self._state_timeout} s: not commanding"
+        return None
 
     def _model_for(self, values: dict[str, Any]) -> RobotModel:
         """The current model, or a new one if the model parameters changed."""
@@ -272,8 +293,11 @@ class JointController(Node):
 
     def _on_reference(self, msg: JointTrajectory, info: Any = None) -> None:
         try:
-            traj = trajectory_from_msg(msg, self._order, self._now(), 0)
+            traj = trajectory_from_msg(
+                msg, self._order, self._now(), 0, self.model.position_limits
+            )
         except ValueError as err:
+            self.counts["rejected.references"] += 1
             self.get_logger().warning(f"rejected reference: {err}", throttle_duration_sec=1.0)
             return
         self._pending = [p for p in self._pending if p.start < traj.start] + [traj]
@@ -286,6 +310,7 @@ class JointController(Node):
         try:
             stamp, (q, dq) = self._reader.read(raw)
         except ValueError as err:
+            self.counts["rejected.joint_states"] += 1
             self.get_logger().warning(f"rejected joint state: {err}", throttle_duration_sec=1.0)
             return
         previous = self._state_ns
@@ -293,6 +318,7 @@ class JointController(Node):
             self.get_logger().warning(
                 "joint state time went backwards: restarting from the measured configuration"
             )
+            self.counts["restarts"] += 1
             self._restart()
             previous = -1
         self._q, self._dq, self._state_ns = q, dq, stamp
@@ -302,6 +328,8 @@ class JointController(Node):
                 self._pub.publish(self._command_bytes)
                 return
             sent = self._tick(stamp * 1e-9)
+            if sent < 0:
+                return
             self.loop_stats.tick(
                 start,
                 time.perf_counter_ns(),
@@ -321,12 +349,16 @@ class JointController(Node):
                     f"no joint state for more than {self._state_timeout} s: not commanding"
                 )
                 self._silent = True
+                self.counts["stale.stops"] += 1
             return
         if self._silent:
             self.get_logger().info("joint states are back: commanding again")
             self._silent = False
+            self.counts["restarts"] += 1
             self._restart()
         sent = self._tick(now)
+        if sent < 0:
+            return
         self.loop_stats.tick(
             start, time.perf_counter_ns(), sent - self._state_sent_ns, -1, self._nominal_ns
         )
@@ -357,7 +389,8 @@ class JointController(Node):
 
     def _tick(self, t: float) -> int:
         """Compute and publish the command and the state; returns when the command was
-        published [ns, system clock]."""
+        published [ns, system clock], or -1 when a non-finite torque was computed: then
+        nothing is published (the plant keeps its last command, then its timeout acts)."""
         with self._lock:
             q, dq = self._q, self._dq
             dt = 0.0 if self._t_last is None else min(max(t - self._t_last, 0.0), MAX_DT)
@@ -365,6 +398,15 @@ class JointController(Node):
             ref = self._sample(t)
             split = self.compute(q, dq, ref, dt)
             unclamped = split.total
+            if not np.isfinite(unclamped).all():
+                self.counts["dropped.nonfinite_torques"] += 1
+                self.get_logger().error(
+                    f"non-finite torque {unclamped} at t={t:.4f} s (q={q}, q̇={dq}): "
+                    "no command sent",
+                    throttle_duration_sec=1.0,
+                )
+                self._t_last = None  # integrate nothing across the gap
+                return -1
             cmd = self._command
             tau = np.clip(unclamped, self._lowest_effort, self.effort_limits, out=cmd.effort)
             cmd.set_stamp(self._state_ns)

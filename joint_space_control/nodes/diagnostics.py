@@ -3,7 +3,9 @@
 One DiagnosticStatus per node: ``name`` "<node>: control loop", ``hardware_id`` the robot,
 ``values`` every key of :func:`~joint_space_control.nodes.loop_statistics.summary_keys`
 (numbers as text, ``nan`` where nothing was measured) followed by the node's own keys. The
-level is WARN while ticks miss their deadline by more than 1 ms (paced loops), else OK.
+level is ERROR while the node reports an alarm (a controller not commanding for lack of
+joint states, a plant braking for lack of commands), WARN while ticks miss their deadline
+by more than 1 ms (paced loops), else OK.
 The timer runs on the steady clock, so diagnostics keep coming in simulation time, paused
 or not, and the summary work happens in the executor thread, off the control path.
 """
@@ -43,9 +45,14 @@ def text(value: Any) -> str:
 
 
 def loop_status(
-    name: str, hardware_id: str, summary: Mapping[str, float], extra: Mapping[str, Any]
+    name: str,
+    hardware_id: str,
+    summary: Mapping[str, float],
+    extra: Mapping[str, Any],
+    alarm: str | None = None,
 ) -> DiagnosticStatus:
-    """The DiagnosticStatus of one loop from a :meth:`LoopStatistics.summary`."""
+    """The DiagnosticStatus of one loop from a :meth:`LoopStatistics.summary`; an ``alarm``
+    makes it an ERROR with the alarm first in the message."""
     if summary["ticks"] == 0:
         level, message = DiagnosticStatus.OK, "idle (no tick in the last window)"
     else:
@@ -56,6 +63,8 @@ def loop_status(
         )
         if summary["too_late"]:
             message += f", {int(summary['too_late'])} ticks more than 1 ms late"
+    if alarm:
+        level, message = DiagnosticStatus.ERROR, f"{alarm}; {message}"
     values = [KeyValue(key=k, value=text(v)) for k, v in summary.items()]
     values += [KeyValue(key=k, value=text(v)) for k, v in extra.items()]
     return DiagnosticStatus(
@@ -65,7 +74,8 @@ def loop_status(
 
 class LoopDiagnostics:
     """Publishes the summary of ``stats`` on /diagnostics every :data:`PERIOD` seconds, with
-    the node's own values ``extra(summary)`` after the statistics."""
+    the node's own values ``extra(summary)`` after the statistics and the level raised to
+    ERROR while ``alarm()`` gives a reason."""
 
     def __init__(
         self,
@@ -73,12 +83,14 @@ class LoopDiagnostics:
         stats: LoopStatistics,
         hardware_id: str,
         extra: Callable[[Mapping[str, float]], Mapping[str, Any]] = lambda summary: {},
+        alarm: Callable[[], str | None] = lambda: None,
     ) -> None:
         self._node = node
         self._stats = stats
         self._name = f"{node.get_fully_qualified_name().lstrip('/')}: control loop"
         self._hardware_id = hardware_id
         self._extra = extra
+        self._alarm = alarm
         self._pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
         self._timer = node.create_timer(
             PERIOD, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME)
@@ -88,7 +100,11 @@ class LoopDiagnostics:
         summary = self._stats.summary(time.perf_counter_ns())
         msg = DiagnosticArray()
         msg.header.stamp = self._node.get_clock().now().to_msg()
-        msg.status = [loop_status(self._name, self._hardware_id, summary, self._extra(summary))]
+        msg.status = [
+            loop_status(
+                self._name, self._hardware_id, summary, self._extra(summary), self._alarm()
+            )
+        ]
         self._pub.publish(msg)
 
 

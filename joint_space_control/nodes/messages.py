@@ -175,7 +175,11 @@ def make_joint_state(joints: Sequence[str]) -> JointState:
 
 
 def trajectory_from_msg(
-    msg: JointTrajectory, order: JointOrder, now: float, origin_ns: int
+    msg: JointTrajectory,
+    order: JointOrder,
+    now: float,
+    origin_ns: int,
+    position_limits: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Trajectory:
     """Validate a JointTrajectory for the controlled joints.
 
@@ -183,6 +187,9 @@ def trajectory_from_msg(
     times are returned in seconds after ``origin_ns``, the controller's time origin. Every
     controlled joint must be present, no unknown or duplicated names; positions are required
     on every point, velocities and accelerations are optional but, when given, complete.
+    Rejected as well: a trajectory whose last point lies before ``now`` (it ended already),
+    and points outside ``position_limits`` (lower, upper; set-points are rejected, not
+    clamped: a clamped set-point is a different motion than the one asked for).
     """
     if not msg.points:
         raise ValueError("trajectory has no points")
@@ -201,13 +208,31 @@ def trajectory_from_msg(
             raise ValueError(f"{name} given on some points only")
     stamp = stamp_to_ns(msg.header.stamp)
     start = now if stamp == 0 else (stamp - origin_ns) * 1e-9
-    return Trajectory.build(
+    traj = Trajectory.build(
         start,
         np.array(times),
         np.array(positions),
         np.array(velocities) if velocities else None,
         np.array(accelerations) if accelerations else None,
     )
+    if traj.end < now:
+        raise ValueError(f"trajectory ended at t={traj.end:.3f} s, before now (t={now:.3f} s)")
+    if position_limits is not None:
+        _check_limits(traj.positions, position_limits, order.joints)
+    return traj
+
+
+def _check_limits(
+    positions: np.ndarray, limits: tuple[np.ndarray, np.ndarray], joints: Sequence[str]
+) -> None:
+    lower, upper = limits
+    outside = (positions < lower) | (positions > upper)
+    if outside.any():
+        k, j = np.argwhere(outside)[0]
+        raise ValueError(
+            f"point {k}: {joints[j]} position {positions[k, j]:.4g} outside its limits "
+            f"[{lower[j]:.4g}, {upper[j]:.4g}] (rejected, not clamped)"
+        )
 
 
 def state_message(joints: Sequence[str]) -> Float64MultiArray:

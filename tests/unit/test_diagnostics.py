@@ -61,3 +61,11 @@ def test_statuses_parse_a_diagnostic_array_by_name():
     a = parsed["a: control loop"]
     assert a["ticks"] == 5.0 and a["trigger"] == "state" and a["level"] == 0
     assert a["hardware_id"] == "iiwa" and a["compute.p50_us"] == 20.0
+
+
+def test_an_alarm_is_an_error_first_in_the_message():
+    summary = summary_of([(0, 20, 300, 10), (1000, 20, 300, 10)])
+    status = loop_status("x: control loop", "iiwa", summary, {}, "brakes engaged")
+    assert status.level == DiagnosticStatus.ERROR
+    assert status.message.startswith("brakes engaged; ")
+    assert loop_status("x", "iiwa", summary, {}, None).level == DiagnosticStatus.OK

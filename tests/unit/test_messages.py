@@ -198,7 +198,7 @@ def test_trajectory_stamp_is_seconds_after_the_origin():
     origin_ns = 1_700_000_000_123_456_789
     stamp_ns = origin_ns + 3_250_000_000
     msg = trajectory(JOINTS, [point([1.0, 2.0, 3.0], 0.0)], stamp_ns=stamp_ns)
-    tr = trajectory_from_msg(msg, JointOrder(JOINTS), now=99.0, origin_ns=origin_ns)
+    tr = trajectory_from_msg(msg, JointOrder(JOINTS), now=3.0, origin_ns=origin_ns)
     assert tr.start == pytest.approx(3.25, abs=1e-9)
     tr = trajectory_from_msg(msg, JointOrder(JOINTS), now=99.0, origin_ns=0)
     assert tr.start == pytest.approx(stamp_ns * 1e-9, rel=1e-15)
@@ -230,6 +230,33 @@ def test_trajectory_stamp_is_seconds_after_the_origin():
 def test_invalid_trajectories_rejected(joint_names, points, match):
     with pytest.raises(ValueError, match=match):
         trajectory_from_msg(trajectory(joint_names, points), JointOrder(JOINTS), 0.0, 0)
+
+
+LIMITS = (np.array([-1.0, -2.0, -np.inf]), np.array([1.0, 2.0, np.inf]))
+
+
+def test_set_points_outside_the_position_limits_are_rejected_not_clamped():
+    order = JointOrder(JOINTS)
+    inside = trajectory(JOINTS, [point([1.0, -2.0, 1e6], 0.5)])  # on the limits: accepted
+    tr = trajectory_from_msg(inside, order, 0.0, 0, LIMITS)
+    np.testing.assert_array_equal(tr.positions, [[1.0, -2.0, 1e6]])
+    outside = trajectory(JOINTS, [point([0.0, 0.0, 0.0], 0.5), point([0.5, 2.01, 0.0], 1.0)])
+    with pytest.raises(ValueError, match=r"point 1: j2 position 2.01 outside its limits"):
+        trajectory_from_msg(outside, order, 0.0, 0, LIMITS)
+    # in message order, not controlled-joint order
+    swapped = trajectory(["j3", "j1", "j2"], [point([0.0, -1.5, 0.0], 0.5)])
+    with pytest.raises(ValueError, match=r"point 0: j1 position -1.5"):
+        trajectory_from_msg(swapped, order, 0.0, 0, LIMITS)
+
+
+def test_a_trajectory_that_already_ended_is_rejected():
+    order = JointOrder(JOINTS)
+    msg = trajectory(JOINTS, [point([0, 0, 0], 0.0), point([1, 1, 1], 0.5)], stamp_ns=2 * 10**9)
+    with pytest.raises(ValueError, match=r"ended at t=2.500 s, before now \(t=3.000 s\)"):
+        trajectory_from_msg(msg, order, 3.0, 0)
+    assert trajectory_from_msg(msg, order, 2.5, 0).end == 2.5  # its last point is now: fine
+    # started in the past, ends in the future: accepted (it is joined where it is)
+    assert trajectory_from_msg(msg, order, 2.2, 0).start == 2.0
 
 
 # -- state message and stamps ----------------------------------------------------------------

@@ -1,0 +1,24 @@
+"""Torque limits every command passes through on its way to the arm (no ROS).
+
+The effort limit bounds the torque, the rate limit its change per step, like libfranka's
+torque-rate limiter; both keep the command finite as long as their inputs are.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def rate_steps(max_rate: np.ndarray, dt: float) -> np.ndarray:
+    """Largest change per step of ``dt`` seconds [N·m] for the rates ``max_rate`` [N·m/s];
+    a rate of 0 means no limit (inf)."""
+    max_rate = np.asarray(max_rate, dtype=float)
+    if np.any(max_rate < 0) or not np.all(np.isfinite(max_rate)) or dt <= 0:
+        raise ValueError("torque rates must be finite and >= 0, the step > 0")
+    return np.where(max_rate > 0, max_rate * dt, np.inf)
+
+
+def limit_rate(target: np.ndarray, previous: np.ndarray, max_step: np.ndarray) -> np.ndarray:
+    """``target``, moved from ``previous`` by at most ``max_step`` per joint (exactly
+    ``target`` where it is within reach, and always where ``max_step`` is inf)."""
+    return np.clip(target, previous - max_step, previous + max_step)
