@@ -10,7 +10,11 @@ publisher with other QoS turns up later.
 
 Each message is stamped with its receive time in the node clock: the simulation time with
 ``use_sim_time:=true``, else the system time. Ctrl-C and SIGTERM close the bag cleanly (the
-MCAP summary and ``metadata.yaml`` are written).
+MCAP summary and ``metadata.yaml`` are written). What was recorded reaches the file every
+``flush_period`` (of bag time, and of wall time while idle), so SIGKILL loses at most about
+that much; ``jsc recover`` makes a complete bag of what is on disk. The bag is not created
+on a file system with less than ``min_free_space_mb`` free; a write error while recording
+(disk full) stops the recording with one error line and exit code 1.
 
 The recorded subscriptions are served by a dedicated wait-set loop that takes every queued
 message at each wake-up (:class:`~joint_space_control.nodes.control_path.ControlPath`): a
@@ -39,7 +43,14 @@ from rosbags.interfaces import QosTime as BagQosTime
 
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.control_path import ControlPath, spin_node
-from joint_space_control.recording.bag_writer import STORAGES, BagWriter, RecordedTopic
+from joint_space_control.recording.bag_writer import (
+    FLUSH_PERIOD,
+    MIN_FREE_SPACE_MB,
+    STORAGES,
+    BagWriteError,
+    BagWriter,
+    RecordedTopic,
+)
 from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection
 
 #: Messages a subscription queues while the recorder is busy writing.
@@ -66,6 +77,20 @@ PARAMETERS = (
     params.ParamSpec("storage", "mcap", "Storage format: mcap | sqlite3", read_only=True),
     params.ParamSpec(
         "discovery_period", 0.2, "Wall time between looks for new topics [s], > 0", read_only=True
+    ),
+    params.ParamSpec(
+        "flush_period",
+        FLUSH_PERIOD,
+        "Recorded (bag) time, and wall time when idle, between flushes to the file [s]: the "
+        "most a SIGKILL loses; 0: only at close (MCAP: 1 MiB chunks; sqlite3: nothing "
+        "survives a kill)",
+        read_only=True,
+    ),
+    params.ParamSpec(
+        "min_free_space_mb",
+        MIN_FREE_SPACE_MB,
+        "Free space the output's file system must have at start [MB]; 0: no check",
+        read_only=True,
     ),
 )
 
@@ -122,8 +147,11 @@ class Recorder(Node):
         storage = params.choice(values, "storage", STORAGES)
         self.selection = TopicSelection(params.names(values, "topics"), self.get_namespace())
         period = params.positive(values, "discovery_period")
+        flush_period = params.nonnegative_number(values, "flush_period")
+        min_free = params.nonnegative_number(values, "min_free_space_mb")
         output = values["output"] or time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S")
-        self.bag = BagWriter(output, storage)  # fails here, before anything runs
+        # fails here, before anything runs
+        self.bag = BagWriter(output, storage, flush_period, min_free)
         self._recording: dict[str, tuple[Subscription, QoSProfile]] = {}
         self._skipped: set[str] = set()
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
@@ -131,6 +159,8 @@ class Recorder(Node):
         try:
             self._discover()
             self.create_timer(period, self._discover, clock=self._wall)
+            if flush_period > 0:  # an idle recorder still flushes what it holds
+                self.create_timer(flush_period, self._flush, clock=self._wall)
         except BaseException:
             self.bag.close()
             raise
@@ -138,7 +168,21 @@ class Recorder(Node):
             f"recording {', '.join(self.selection.patterns)} to {output} ({storage})"
         )
 
+    def _flush(self) -> None:
+        try:
+            self.bag.flush()
+        except BagWriteError as err:
+            self.write_failed(err)
+
+    def write_failed(self, err: BagWriteError) -> None:
+        """A write error of the storage (disk full): one error line, recording stops (the
+        bag is already closed as far as it can be)."""
+        self.get_logger().error(str(err))
+        self.control_path.stop()
+
     def _discover(self) -> None:
+        if self.bag.error is not None:
+            return
         for name, types in self.get_topic_names_and_types():
             if not self.selection.matches(name) or name in self._skipped:
                 continue
@@ -174,7 +218,12 @@ class Recorder(Node):
         logger = self.get_logger()
 
         def on_message(raw: bytes, info: Any) -> None:
-            if not bag.write(topic, clock.now().nanoseconds, raw):
+            try:
+                written = bag.write(topic, clock.now().nanoseconds, raw)
+            except BagWriteError as err:
+                self.write_failed(err)
+                return
+            if not written and bag.error is None:
                 logger.warning(
                     f"dropped a malformed {topic.msgtype} on {topic.name}",
                     throttle_duration_sec=1.0,
@@ -187,7 +236,17 @@ class Recorder(Node):
 
     def close(self) -> None:
         """Close the bag (summary and metadata written); called on Ctrl-C and SIGTERM."""
-        self.bag.close()
+        try:
+            self.bag.close()
+        except BagWriteError as err:
+            self.get_logger().error(str(err))
+        if self.bag.error is not None:
+            print(
+                f"recorder: stopped on a write error; {self.bag.path} is incomplete with "
+                f"{self.bag.message_count} messages written",
+                flush=True,
+            )
+            return
         counts = ", ".join(f"{t.name}: {t.count}" for t in self.bag.topics.values())
         print(
             f"recorder: closed {self.bag.path} with {self.bag.message_count} messages"
@@ -236,12 +295,15 @@ def main(args: list[str] | None = None) -> None:
     recorder.append(node)
     try:
         if not stop.is_set():
-            spin_node(node, node.control_path)  # until a signal stops the control path
-        node.control_path.drain(DRAIN_IDLE, stopped_at[0])
+            spin_node(node, node.control_path)  # until a signal or a write error stops it
+        if node.bag.error is None:
+            node.control_path.drain(DRAIN_IDLE, stopped_at[0] or time.time_ns())
     finally:
         node.close()
         node.destroy_node()
         rclpy.try_shutdown()
+    if node.bag.error is not None:
+        sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -3,6 +3,9 @@ selection, and the recorder's QoS adaptation."""
 
 from __future__ import annotations
 
+import errno
+import shutil
+import sqlite3
 from pathlib import Path
 
 import pytest
@@ -15,7 +18,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 
 from joint_space_control.nodes.recorder import subscription_qos
-from joint_space_control.recording.bag_writer import BagWriter, CdrFraming, jazzy_typestore
+from joint_space_control.recording.bag_writer import (
+    BagWriteError,
+    BagWriter,
+    CdrFraming,
+    free_space_mb,
+    jazzy_typestore,
+)
+from joint_space_control.recording.recover import recover
 from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection
 
 TYPESTORE = jazzy_typestore()
@@ -146,6 +156,99 @@ def test_close_is_idempotent_and_stops_writing(tmp_path):
     assert not bag.write(topic, 2, full_state_message())
     with AnyReader([tmp_path / "bag"], default_typestore=TYPESTORE) as reader:
         assert reader.message_count == 1
+
+
+# --------------------------------------------------------------------------- faults
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_flushing_bounds_what_a_kill_loses_in_bag_time(tmp_path, storage):
+    # Stamps 1 ms apart written much faster than 1 kHz: the bag-time criterion flushes.
+    flush_period, loss = 0.25, []
+    with BagWriter(tmp_path / "bag", storage, flush_period=flush_period) as bag:
+        topic = bag.add_topic("/joint_states", JS)
+        for k in range(2000):
+            if k and k % 400 == 0:  # a SIGKILL leaves what the OS holds: copy it now
+                killed = tmp_path / f"killed{k}"
+                shutil.copytree(tmp_path / "bag", killed)
+                result = recover(killed)
+                loss.append((k - 1) * 1e-3 - result.end_ns * 1e-9)
+                assert result.counts["/joint_states"] == round(result.end_ns / 1e6) + 1
+            bag.write(topic, k * 1_000_000, full_state_message())
+    assert all(0 <= lost <= flush_period for lost in loss), loss
+
+
+def test_flush_sends_an_idle_recorders_messages_to_the_file(tmp_path):
+    with BagWriter(tmp_path / "bag", "mcap", flush_period=10.0) as bag:
+        topic = bag.add_topic("/joint_states", JS)
+        bag.write(topic, 0, full_state_message())  # flushed: the first one always is
+        for k in range(1, 5):
+            bag.write(topic, k, full_state_message())
+        shutil.copytree(tmp_path / "bag", tmp_path / "before")
+        bag.flush()  # the recorder's wall-time timer
+        shutil.copytree(tmp_path / "bag", tmp_path / "after")
+    assert recover(tmp_path / "before").counts["/joint_states"] == 1
+    assert recover(tmp_path / "after").counts["/joint_states"] == 5
+
+
+def test_too_little_free_space_is_refused_at_start(tmp_path):
+    free = free_space_mb(tmp_path)
+    with pytest.raises(ValueError, match=r"MB free on .* less than min_free_space_mb"):
+        BagWriter(tmp_path / "bag", min_free_space_mb=free * 2 + 1)
+    assert not (tmp_path / "bag").exists()
+    with BagWriter(tmp_path / "bag", min_free_space_mb=1e-3):  # enough: created
+        pass
+    assert (tmp_path / "bag" / "metadata.yaml").is_file()
+
+
+class _FullDisk:
+    """A file object whose writes fail as on a full disk."""
+
+    def __init__(self, file):
+        self._file = file
+
+    def write(self, data):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    flush = write
+
+    def tell(self):
+        return self._file.tell()
+
+    def close(self):
+        self._file.close()
+
+
+def test_a_disk_full_mid_run_is_one_error_and_stops_the_bag(tmp_path):
+    bag = BagWriter(tmp_path / "bag", "mcap", flush_period=0.01)
+    topic = bag.add_topic("/joint_states", JS)
+    for k in range(10):  # 10 ms apart: each one flushed
+        assert bag.write(topic, k * 10_000_000, full_state_message())
+    storage = bag._writer.storage
+    storage.bio = _FullDisk(storage.bio)
+    with pytest.raises(BagWriteError, match="No space left on device.*jsc recover"):
+        for k in range(10, 100):
+            bag.write(topic, k * 1_000_000, full_state_message())
+    assert isinstance(bag.error, BagWriteError)
+    assert not bag.write(topic, 10**9, full_state_message())  # no second error
+    bag.flush()
+    bag.close()  # nothing left to fail
+    # what reached the disk before the error is recoverable
+    assert recover(tmp_path / "bag").counts["/joint_states"] == 10
+
+
+def test_a_sqlite3_disk_full_is_the_same_error(tmp_path):
+    bag = BagWriter(tmp_path / "bag", "sqlite3", flush_period=0.0)
+    topic = bag.add_topic("/joint_states", JS)
+    assert bag.write(topic, 0, full_state_message())
+
+    class FullCursor:
+        def execute(self, *args):
+            raise sqlite3.OperationalError("database or disk is full")
+
+    bag._writer.storage.cursor = FullCursor()
+    with pytest.raises(BagWriteError, match="database or disk is full"):
+        bag.write(topic, 1, full_state_message())
+    assert not bag.write(topic, 2, full_state_message())
+    bag.close()
 
 
 # --------------------------------------------------------------------------- selection, QoS
