@@ -76,7 +76,19 @@ def main(argv: list[str] | None = None) -> int:
         help="controller law (inverse_dynamics)",
     )
     p_soak.add_argument("--out", type=Path, default=Path("out/soak"), help="output dir")
+    p_recover = sub.add_parser(
+        "recover",
+        help="rewrite what is readable of a bag whose recorder was killed into a complete bag",
+    )
+    p_recover.add_argument("bag", type=Path, help="rosbag2 directory (or its .mcap/.db3 file)")
+    p_recover.add_argument(
+        "--out", type=Path, default=None, help="new bag directory (default: <BAG>_recovered)"
+    )
     args = parser.parse_args(argv)
+    if args.command == "recover":
+        from joint_space_control.cli import recover
+
+        return recover.run(args.bag, args.out)
     if args.command == "soak":
         from joint_space_control.cli import soak
 
