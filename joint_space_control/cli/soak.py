@@ -46,6 +46,11 @@ def format_report(report: dict[str, Any]) -> str:
         f"effort commands checked: {cmd['commands']}, violations: {cmd['violations']} "
         f"(non-finite {cmd['non_finite']}, over limit {cmd['over_limit']}, unknown joints "
         f"{cmd['unknown_joints']}), largest |tau|/limit {cmd['max_effort_over_limit']:.3f}",
+        "command delivery to the observer: first stamp "
+        f"{_num(report['command_delivery']['first_stamp_s'], '{:.3f}')} s, longest gap "
+        f"{_num(report['command_delivery']['longest_gap_between_arrivals_ms'], '{:.1f}')} ms, "
+        "longest publication to arrival "
+        f"{_num(report['command_delivery']['longest_publication_to_arrival_ms'], '{:.1f}')} ms",
         f"gain changes accepted: {upd['valid_accepted']}/{upd['valid_sent']}; invalid updates "
         f"rejected: {upd['invalid_rejected']}/{upd['invalid_sent']} (old values kept "
         f"{upd['old_values_kept_after_reject']})",

@@ -89,6 +89,8 @@ MOVE_FRACTION = 0.15
 #: Seconds between memory samples; default warm-up [s] left out of the growth fit.
 SAMPLE_PERIOD = 2.0
 WARMUP = 10.0
+#: Wait [s] between the graph being complete and the start (every endpoint matched).
+SETTLE = 1.0
 #: Wait [s] for a command before the observer serves the rest (parameters, diagnostics).
 OBSERVED_WAIT = 0.005
 COMMAND_QOS = QoSProfile(
@@ -147,9 +149,13 @@ class SoakObserver:
         self.audit = audit
         self._image: JointStateImage | None = None
         self._commands = ControlPath(self.node)
-        self._commands.subscription(
+        self._command_sub = self._commands.subscription(
             JointState, "effort_command", self._on_command, COMMAND_QOS, raw=True, drain=True
         )
+        # Delivery of the commands to this observer [ns]: first and last stamp, the longest
+        # wait between two arrivals and the longest time from publication to arrival.
+        self.delivery = {"first_stamp": -1, "last_stamp": -1, "max_gap": 0, "max_lag": 0}
+        self._last_arrival = -1
         self.latest: dict[str, dict[str, float | str]] = {}
         self.received: dict[str, int] = {}
         self.warnings: dict[str, int] = {}
@@ -159,12 +165,21 @@ class SoakObserver:
         self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
         self._params: dict[str, AsyncParameterClient] = {}
 
-    def _on_command(self, raw: bytes, info: object = None) -> None:
+    def _on_command(self, raw: bytes, info: dict[str, int]) -> None:
         image = self._image
         if image is None or not image.matches(raw):
             msg = deserialize_message(raw, JointState)
             image = self._image = JointStateImage.like(msg)
         self.audit.check(image.names, image.read(raw, 2))
+        d, stamp = self.delivery, JointStateImage.stamp(raw)
+        if d["first_stamp"] < 0:
+            d["first_stamp"] = stamp
+        d["last_stamp"] = stamp
+        arrival = info["received_timestamp"]
+        if self._last_arrival >= 0:
+            d["max_gap"] = max(d["max_gap"], arrival - self._last_arrival)
+        self._last_arrival = arrival
+        d["max_lag"] = max(d["max_lag"], arrival - info["source_timestamp"])
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for name, status in statuses(msg).items():
@@ -207,6 +222,7 @@ class SoakObserver:
                 and n.count_subscribers("joint_states") >= 1
                 and n.count_publishers("effort_command") >= 1
                 and n.count_subscribers("effort_command") >= 2  # sim_bridge and this
+                and self._command_sub.get_publisher_count() >= 1
                 and self._ref_pub.get_subscription_count() >= 1
                 and all(c.services_are_ready() for c in self._params.values())
             ),
@@ -303,6 +319,10 @@ def run(
             pids = {name: node.proc.pid for name, node in group.nodes.items()}
             pids["jsc soak (observer)"] = os.getpid()
             memory = {name: ([], []) for name in pids}
+            # The graph shows an endpoint before every writer has matched every reader: a
+            # second of settling (the simulator is paused) so that no early message is lost.
+            settled = time.monotonic() + SETTLE
+            observer.spin_until(lambda: time.monotonic() >= settled, 5.0, "settling", check)
             observer.trigger("/sim_bridge/resume", check)
             steal = StealMeter()
             t0 = time.monotonic()
@@ -439,6 +459,12 @@ def _report(
         "too_late": sim.get("total.too_late", math.nan),
         "controller_ticks": ctrl.get("total.ticks"),
         "commands": audit.figures(),
+        "command_delivery": {
+            "first_stamp_s": observer.delivery["first_stamp"] * 1e-9,
+            "last_stamp_s": observer.delivery["last_stamp"] * 1e-9,
+            "longest_gap_between_arrivals_ms": observer.delivery["max_gap"] * 1e-6,
+            "longest_publication_to_arrival_ms": observer.delivery["max_lag"] * 1e-6,
+        },
         "parameter_updates": tally.figures(),
         "diagnostics_received": {
             name.removesuffix(": control loop"): count for name, count in observer.received.items()
