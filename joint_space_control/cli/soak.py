@@ -27,6 +27,17 @@ def format_report(report: dict[str, Any]) -> str:
         f"machine: {report['machine']['cpu']}, {report['machine']['cores']} cores, "
         f"load {report['machine']['load_average_1_5_15']}, CPU steal "
         + _num(report.get("cpu_steal_fraction"), "{:.1%}"),
+        "source: "
+        + (
+            f"{report['source']['commit'][:10]}"
+            + (
+                f" + uncommitted changes in {len(report['source']['changed_files'])} files"
+                if report["source"]["changed_files"]
+                else ""
+            )
+            if report.get("source")
+            else "unknown"
+        ),
         "",
         f"{'process':<30} {'RSS first':>10} {'start':>9} {'end':>9} {'max':>9} {'slope':>13}",
     ]

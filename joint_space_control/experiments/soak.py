@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import subprocess
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -389,6 +390,7 @@ def run(
         options, controller, duration, memory, observer, audit, tally, started_utc, cpu_steal
     )
     report["machine"], report["versions"] = machine(), versions()
+    report["source"] = _source()
     criteria = verdict(report, options.thresholds)
     report["criteria"] = [{"name": c.name, "met": c.met, "detail": c.detail} for c in criteria]
     report["passed"] = passed(criteria)
@@ -480,6 +482,26 @@ def _report(
             "max_violations": options.thresholds.max_violations,
         },
     }
+
+
+def _source() -> dict[str, Any] | None:
+    """The commit of the package's checkout and the files changed in it (None outside git)."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True
+        )
+        status = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+        )
+    except OSError:
+        return None
+    if commit.returncode != 0:
+        return None
+    changed = [line[3:] for line in status.stdout.splitlines()]
+    return {"commit": commit.stdout.strip(), "changed_files": changed}
 
 
 def _plain(value: Any) -> Any:
