@@ -228,7 +228,8 @@ class JointStateReader:
     validating conversion of a deserialized message (it raises ``ValueError`` with the reason
     for an invalid one) and ``allow_extra`` whether names that are not controlled may appear.
     A message with the layout of the last valid one is read in place; its values are still
-    checked for non-finite numbers (then the ordinary conversion reports it).
+    checked for non-finite numbers (then the ordinary conversion reports it). Bytes that are
+    no JointState raise ``ValueError`` too.
     """
 
     def __init__(
@@ -254,7 +255,10 @@ class JointStateReader:
             values = np.frombuffer(raw, _F8, count=self._span, offset=self._base)[self._index]
             if np.isfinite(values).all():
                 return JointStateImage.stamp(raw), tuple(values.reshape(len(self._fields), -1))
-        msg = deserialize_message(raw, JointState)
+        try:
+            msg = deserialize_message(raw, JointState)
+        except RuntimeError as err:  # rmw's RMWError: truncated or garbled bytes
+            raise ValueError(f"not a serialized JointState ({len(raw)} bytes): {err}") from None
         arrays = self._ordinary(msg)
         self._learn(msg)
         stamp = msg.header.stamp
