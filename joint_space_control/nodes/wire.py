@@ -228,8 +228,9 @@ class JointStateReader:
     validating conversion of a deserialized message (it raises ``ValueError`` with the reason
     for an invalid one) and ``allow_extra`` whether names that are not controlled may appear.
     A message with the layout of the last valid one is read in place; its values are still
-    checked for non-finite numbers (then the ordinary conversion reports it). Bytes that are
-    no JointState raise ``ValueError`` too.
+    checked for non-finite numbers (then the ordinary conversion reports it): every value of
+    the requested arrays, those of names that are not controlled included, as the ordinary
+    conversions do. Bytes that are no JointState raise ``ValueError`` too.
     """
 
     def __init__(
@@ -247,13 +248,17 @@ class JointStateReader:
         self._base = 0  # offset of the first requested value
         self._span = 0  # float64 slots from there to the last requested value
         self._index: np.ndarray | None = None  # slots of the requested values, in order
+        # slots of every value of those arrays, when some are not requested (extra names)
+        self._checked: np.ndarray | None = None
 
     def read(self, raw: bytes) -> tuple[int, tuple[np.ndarray, ...]]:
         """(stamp [ns], arrays in the controlled-joint order); raises ``ValueError``."""
         image = self._image
         if image is not None and image.matches(raw):
-            values = np.frombuffer(raw, _F8, count=self._span, offset=self._base)[self._index]
-            if np.isfinite(values).all():
+            block = np.frombuffer(raw, _F8, count=self._span, offset=self._base)
+            values = block[self._index]
+            checked = values if self._checked is None else block[self._checked]
+            if np.isfinite(checked).all():
                 return JointStateImage.stamp(raw), tuple(values.reshape(len(self._fields), -1))
         try:
             msg = deserialize_message(raw, JointState)
@@ -270,7 +275,14 @@ class JointStateReader:
         joints = self._order.index(msg.name, allow_extra=self._allow_extra)
         offsets = [image.offsets[f] for f in self._fields]
         self._base = min(offsets)
-        slots = [(offset - self._base) // 8 + joints for offset in offsets]
-        self._index = np.concatenate(slots)
-        self._span = int(self._index.max()) + 1
+        firsts = [(offset - self._base) // 8 for offset in offsets]
+        self._index = np.concatenate([first + joints for first in firsts])
+        checked = np.concatenate(
+            [
+                first + np.arange(image.sizes[f])
+                for first, f in zip(firsts, self._fields, strict=True)
+            ]
+        )
+        self._checked = None if checked.size == self._index.size else checked
+        self._span = int(checked.max()) + 1
         self._image = image
