@@ -195,9 +195,11 @@ def trajectory_from_msg(
         raise ValueError("trajectory has no points")
     idx = order.index(msg.joint_names, allow_extra=False)
     size = len(msg.joint_names)
-    times, positions, velocities, accelerations = [], [], [], []
+    times_ns, times, positions, velocities, accelerations = [], [], [], [], []
     for k, point in enumerate(msg.points):
-        times.append(point.time_from_start.sec + 1e-9 * point.time_from_start.nanosec)
+        sec, nanosec = point.time_from_start.sec, point.time_from_start.nanosec
+        times_ns.append(sec * 1_000_000_000 + nanosec)
+        times.append(sec + 1e-9 * nanosec)
         positions.append(_field(point.positions, size, f"point {k} position")[idx])
         if len(point.velocities):
             velocities.append(_field(point.velocities, size, f"point {k} velocity")[idx])
@@ -206,11 +208,22 @@ def trajectory_from_msg(
     for name, given in (("velocities", velocities), ("accelerations", accelerations)):
         if given and len(given) != len(positions):
             raise ValueError(f"{name} given on some points only")
+    # exact on the message's integers first; then the seconds must still tell them apart
+    if times_ns[0] < 0 or np.any(np.diff(np.array(times_ns, dtype=np.int64)) <= 0):
+        raise ValueError(f"time_from_start must be >= 0 and strictly increasing: {times_ns} ns")
+    times = np.array(times)
+    close = np.flatnonzero(np.diff(times) <= 0)
+    if close.size:
+        k = close[0]
+        raise ValueError(
+            f"times {times_ns[k]} ns and {times_ns[k + 1]} ns are too close to tell apart "
+            f"in seconds (float) at {times[k]:.0f} s"
+        )
     stamp = stamp_to_ns(msg.header.stamp)
     start = now if stamp == 0 else (stamp - origin_ns) * 1e-9
     traj = Trajectory.build(
         start,
-        np.array(times),
+        times,
         np.array(positions),
         np.array(velocities) if velocities else None,
         np.array(accelerations) if accelerations else None,

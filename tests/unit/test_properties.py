@@ -353,23 +353,18 @@ def test_invalid_trajectories_are_rejected_with_the_reason(case, defect, data):
     assert reason in str(err.value)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="trajectory_from_msg turns time_from_start into float seconds before checking "
-    "that the times increase: from 2**23 s (~97 days) on, durations 1 ns apart round to the "
-    "same float and a strictly increasing trajectory is rejected as non-increasing",
-)
 @settings(max_examples=20, deadline=None)
 @given(sec=st.integers(2**24, 2**31 - 1), nanosec=st.integers(0, 999_999_997))
-def test_strictly_increasing_times_are_accepted_at_any_duration(sec, nanosec):
-    """Three points 1 ns apart: increasing as messages, one float spacing (≥ 3.7 ns) apart
-    at most as seconds."""
+def test_increasing_times_too_close_for_seconds_are_rejected_as_such(sec, nanosec):
+    """Three points 1 ns apart, increasing as messages but one float spacing (≥ 3.7 ns)
+    apart at most as seconds: rejected, and the reason says why (not "not increasing")."""
     points = [
         JointTrajectoryPoint(positions=[0.0], time_from_start=Duration(sec=sec, nanosec=ns))
         for ns in (nanosec, nanosec + 1, nanosec + 2)
     ]
     msg = JointTrajectory(joint_names=["j"], points=points)
-    assert len(trajectory_from_msg(msg, JointOrder(["j"]), 0.0, 0).times) == 3
+    with pytest.raises(ValueError, match="too close to tell apart"):
+        trajectory_from_msg(msg, JointOrder(["j"]), 0.0, 0)
 
 
 # -- the fast JointState reader ----------------------------------------------------------------
