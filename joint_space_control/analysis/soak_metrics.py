@@ -1,5 +1,6 @@
 """Figures and verdict of a soak run (``jsc soak``), no ROS: resident memory and its growth,
-the audit of effort commands, parameter-update bookkeeping and the pass/fail criteria.
+the audit of effort commands, parameter-update bookkeeping, the pass/fail criteria, and the
+configurations the arm is moved between.
 
 The growth of a process's memory is the slope of a least-squares line through its resident
 set size (VmRSS) samples taken after the warm-up, in MB/min (1 MB = 10⁶ bytes). A process
@@ -67,6 +68,21 @@ def memory_summary(
         "slope_mb_per_min": slope_per_minute(ta, ya),
         "span_min": float(ta[-1] - ta[0]) / 60.0 if ta.size else 0.0,
     }
+
+
+def move_targets(
+    lower: np.ndarray, upper: np.ndarray, fraction: float = 0.15
+) -> tuple[np.ndarray, np.ndarray]:
+    """Two configurations inside the position limits [rad]: mid-range ± ``fraction`` of the
+    range, the sign alternating from joint to joint (±0.5 rad around 0 for a joint without
+    limits)."""
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    bounded = np.isfinite(lower) & np.isfinite(upper)
+    lo, hi = np.where(bounded, lower, -1.0), np.where(bounded, upper, 1.0)
+    mid = np.where(bounded, 0.5 * (lo + hi), 0.0)
+    half = np.where(bounded, fraction * (hi - lo), 0.5)
+    sign = np.where(np.arange(lower.size) % 2 == 0, 1.0, -1.0)
+    return mid + sign * half, mid - sign * half
 
 
 @dataclass

@@ -51,6 +51,7 @@ from joint_space_control.analysis.soak_metrics import (
     Thresholds,
     UpdateTally,
     memory_summary,
+    move_targets,
     numeric_values,
     parse_vmrss,
     passed,
@@ -84,9 +85,6 @@ INVALID_EVERY = 10
 #: Reference: a new target every MOVE_PERIOD seconds, reached (at rest) MOVE_TIME after it.
 MOVE_PERIOD = 4.0
 MOVE_TIME = 2.0
-#: Targets: the middle of each joint's range ± this fraction of the range (±0.5 rad when a
-#: joint has no limits).
-MOVE_FRACTION = 0.15
 #: Seconds between memory samples; default warm-up [s] left out of the growth fit.
 SAMPLE_PERIOD = 2.0
 WARMUP = 10.0
@@ -115,16 +113,6 @@ class SoakOptions:
     @property
     def warmup_s(self) -> float:
         return min(self.warmup, self.seconds / 3.0)
-
-
-def move_targets(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two configurations inside the limits: mid-range ± MOVE_FRACTION of the range,
-    alternating in sign from joint to joint (±0.5 rad around 0 for unbounded joints)."""
-    bounded = np.isfinite(lower) & np.isfinite(upper)
-    mid = np.where(bounded, 0.5 * (lower + upper), 0.0)
-    half = np.where(bounded, MOVE_FRACTION * (upper - lower), 0.5)
-    sign = np.where(np.arange(lower.size) % 2 == 0, 1.0, -1.0)
-    return mid + sign * half, mid - sign * half
 
 
 def rss_of(pid: int) -> int | None:
@@ -337,25 +325,12 @@ def run(
                     moves += 1
                     next_move += MOVE_PERIOD
                 if now >= next_sample:
-                    for name, pid in pids.items():
-                        rss = rss_of(pid)
-                        if rss is not None:
-                            memory[name][0].append(now)
-                            memory[name][1].append(rss)
+                    _sample_memory(memory, pids, now)
                     next_sample += options.sample_period
                 if now >= next_change:
                     changes += 1
-                    new = gains[changes % 2]
-                    results = observer.set_parameters(controller, new, check)
-                    tally.valid(all(r.successful for r in results))
-                    if changes % INVALID_EVERY == 0:
-                        (result,) = observer.set_parameters(controller, INVALID_UPDATE, check)
-                        kept = observer.get_parameters(controller, list(new), check)
-                        tally.invalid(
-                            not result.successful,
-                            result.reason,
-                            all(np.allclose(k, new[n]) for k, n in zip(kept, new, strict=True)),
-                        )
+                    invalid = changes % INVALID_EVERY == 0
+                    _change_gains(observer, controller, gains[changes % 2], invalid, tally, check)
                     next_change += CHANGE_PERIOD
                 if now - last_report >= 60.0:
                     last_report = now
@@ -363,15 +338,11 @@ def run(
                 observer.spin_once()
             duration = time.monotonic() - t0
             cpu_steal = steal.fraction()
-            for name, pid in pids.items():  # the last sample, at the end of the run
-                rss = rss_of(pid)
-                if rss is not None:
-                    memory[name][0].append(duration)
-                    memory[name][1].append(rss)
+            _sample_memory(memory, pids, duration)  # the last sample, at the end of the run
             # Stop the loop, take the commands still in flight, then wait for diagnostics
             # of an idle window: their totals are final.
             observer.trigger("/sim_bridge/pause", check)
-            paused_at = {k: v for k, v in observer.received.items()}
+            paused_at = dict(observer.received)
             observer.spin_until(
                 lambda: all(
                     observer.received.get(name, 0) > paused_at.get(name, 0)
@@ -396,6 +367,39 @@ def run(
     report["passed"] = passed(criteria)
     (out / "soak.json").write_text(json.dumps(_plain(report), indent=2) + "\n")
     return report
+
+
+def _sample_memory(
+    memory: dict[str, tuple[list[float], list[int]]], pids: dict[str, int], now: float
+) -> None:
+    """One VmRSS sample of every process (a process that is gone gives none)."""
+    for name, pid in pids.items():
+        rss = rss_of(pid)
+        if rss is not None:
+            memory[name][0].append(now)
+            memory[name][1].append(rss)
+
+
+def _change_gains(
+    observer: SoakObserver,
+    controller: str,
+    gains: dict[str, float],
+    invalid: bool,
+    tally: UpdateTally,
+    check: Callable[[], None],
+) -> None:
+    """Set ``gains`` (must be accepted); with ``invalid`` also send INVALID_UPDATE (must be
+    rejected) and read the gains back (must still be ``gains``)."""
+    results = observer.set_parameters(controller, gains, check)
+    tally.valid(all(r.successful for r in results))
+    if invalid:
+        (result,) = observer.set_parameters(controller, INVALID_UPDATE, check)
+        kept = observer.get_parameters(controller, list(gains), check)
+        tally.invalid(
+            not result.successful,
+            result.reason,
+            all(np.allclose(k, gains[n]) for k, n in zip(kept, gains, strict=True)),
+        )
 
 
 def _progress(

@@ -14,6 +14,7 @@ from joint_space_control.analysis.soak_metrics import (
     Thresholds,
     UpdateTally,
     memory_summary,
+    move_targets,
     numeric_values,
     parse_vmrss,
     passed,
@@ -71,6 +72,16 @@ def test_memory_summary_without_samples_after_warm_up():
     m = memory_summary([0.0, 1.0], [1e6, 2e6], warmup_s=10.0)
     assert math.isnan(m["start_mb"]) and math.isnan(m["slope_mb_per_min"])
     assert m["span_min"] == 0.0 and m["max_mb"] == 2.0
+
+
+def test_move_targets_are_inside_the_limits_and_distinct():
+    lower = np.array([-2.96, -2.09, -np.inf, 0.0])
+    upper = np.array([2.96, 2.09, np.inf, 1.0])
+    a, b = move_targets(lower, upper)
+    for target in (a, b):
+        assert np.all(target > lower) and np.all(target < upper)
+    np.testing.assert_allclose(a, [0.888, -0.627, 0.5, 0.35])
+    np.testing.assert_allclose(b, [-0.888, 0.627, -0.5, 0.65])
 
 
 def test_command_audit_checks_limits_by_name():
