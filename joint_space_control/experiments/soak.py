@@ -34,7 +34,6 @@ from typing import Any
 
 import numpy as np
 import rclpy
-import rclpy.duration
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import ShutdownException, SingleThreadedExecutor, TimeoutException
