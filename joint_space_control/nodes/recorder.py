@@ -207,7 +207,11 @@ class Recorder(Node):
                         )
                     )
                     continue
-                topic = self.bag.add_topic(name, msgtype, [_bag_qos(p) for p in offered])
+                try:
+                    topic = self.bag.add_topic(name, msgtype, [_bag_qos(p) for p in offered])
+                except BagWriteError as err:
+                    self.write_failed(err)
+                    return
                 self.get_logger().info(f"recording {name} [{msgtype}]")
             self._subscribe(topic, qos)
 

@@ -163,7 +163,17 @@ class BagWriter:
         self._writer = Writer(self.path, version=BAG_VERSION, storage_plugin=STORAGES[storage])
         try:
             self._writer.open()
-        except (OSError, WriterError) as err:
+            storage_writer = self._writer.storage
+            if isinstance(storage_writer, Sqlite3Writer):
+                # The recorder writes from its control path and adds topics and flushes from
+                # its executor thread, one at a time (self._lock); Python's sqlite3 refuses a
+                # connection used by another thread than its creator unless told otherwise.
+                storage_writer.conn.close()
+                storage_writer.conn = sqlite3.connect(
+                    f"file:{storage_writer.path}", uri=True, check_same_thread=False
+                )
+                storage_writer.cursor = storage_writer.conn.cursor()
+        except (OSError, WriterError, sqlite3.Error) as err:
             raise ValueError(f"cannot create bag {str(self.path)!r}: {err}") from err
         self.topics: dict[str, RecordedTopic] = {}
         self._open = True
@@ -180,7 +190,12 @@ class BagWriter:
         return msgtype in self.typestore.fielddefs
 
     def add_topic(self, name: str, msgtype: str, offered_qos: Sequence[Qos] = ()) -> RecordedTopic:
-        """Register a topic (once); its metadata carries the publishers' offered QoS."""
+        """Register a topic (once); its metadata carries the publishers' offered QoS.
+
+        Raises:
+            ValueError: known already, no message definition, or the bag is closed.
+            BagWriteError: as :meth:`write`.
+        """
         if name in self.topics:
             raise ValueError(f"topic {name!r} is already recorded")
         if not self.knows(msgtype):
@@ -188,9 +203,12 @@ class BagWriter:
         with self._lock:
             if not self._open:
                 raise ValueError(f"bag {str(self.path)!r} is closed")
-            connection = self._writer.add_connection(
-                name, msgtype, typestore=self.typestore, offered_qos_profiles=list(offered_qos)
-            )
+            try:
+                connection = self._writer.add_connection(
+                    name, msgtype, typestore=self.typestore, offered_qos_profiles=list(offered_qos)
+                )
+            except (OSError, sqlite3.Error) as err:  # sqlite3 writes the topic row now
+                raise self._failed(err) from err
         topic = RecordedTopic(name, msgtype, connection, CdrFraming(self.typestore, msgtype))
         self.topics[name] = topic
         return topic

@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import shutil
 import sqlite3
+import threading
 from pathlib import Path
 
 import pytest
@@ -189,6 +190,31 @@ def test_flush_sends_an_idle_recorders_messages_to_the_file(tmp_path):
     assert recover(tmp_path / "after").counts["/joint_states"] == 5
 
 
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_topics_messages_and_flushes_may_come_from_other_threads(tmp_path, storage):
+    # The recorder creates the bag in its main thread, adds topics and flushes from its
+    # executor thread and writes from its control path.
+    bag = BagWriter(tmp_path / "bag", storage, flush_period=1e-3)
+    failures: list[BaseException] = []
+
+    def other_thread():
+        try:
+            topic = bag.add_topic("/joint_states", JS)
+            for k in range(20):
+                bag.write(topic, k * 1_000_000, full_state_message())
+            bag.flush()
+        except BaseException as err:  # noqa: BLE001 - reported by the test thread
+            failures.append(err)
+
+    thread = threading.Thread(target=other_thread)
+    thread.start()
+    thread.join()
+    bag.close()
+    assert not failures and bag.error is None
+    with AnyReader([tmp_path / "bag"], default_typestore=TYPESTORE) as reader:
+        assert reader.message_count == 20
+
+
 def test_too_little_free_space_is_refused_at_start(tmp_path):
     free = free_space_mb(tmp_path)
     with pytest.raises(ValueError, match=r"MB free on .* less than min_free_space_mb"):
@@ -226,7 +252,7 @@ def test_a_disk_full_mid_run_is_one_error_and_stops_the_bag(tmp_path):
     storage.bio = _FullDisk(storage.bio)
     with pytest.raises(BagWriteError, match="No space left on device.*jsc recover"):
         for k in range(10, 100):
-            bag.write(topic, k * 1_000_000, full_state_message())
+            bag.write(topic, k * 10_000_000, full_state_message())
     assert isinstance(bag.error, BagWriteError)
     assert not bag.write(topic, 10**9, full_state_message())  # no second error
     bag.flush()
@@ -248,6 +274,22 @@ def test_a_sqlite3_disk_full_is_the_same_error(tmp_path):
     with pytest.raises(BagWriteError, match="database or disk is full"):
         bag.write(topic, 1, full_state_message())
     assert not bag.write(topic, 2, full_state_message())
+    with pytest.raises(ValueError, match="is closed"):
+        bag.add_topic("/other", JS)
+    bag.close()
+
+
+def test_a_topic_that_cannot_be_stored_is_the_same_error(tmp_path):
+    bag = BagWriter(tmp_path / "bag", "sqlite3")
+
+    class FullCursor:
+        def execute(self, *args):
+            raise sqlite3.OperationalError("database or disk is full")
+
+    bag._writer.storage.cursor = FullCursor()
+    with pytest.raises(BagWriteError, match="database or disk is full"):
+        bag.add_topic("/joint_states", JS)
+    assert bag.error is not None
     bag.close()
 
 
