@@ -27,6 +27,8 @@ PYPI_REQUIRES = [
     "numpy>=1.26,<3",
     "pybullet>=3.2.5,<4",
     "rosbags>=0.10,<1",
+    # `jsc recover`: reads a killed MCAP bag record by record (no summary needed)
+    "mcap>=1.2,<2",
     "matplotlib>=3.8,<4",
     "pyyaml>=6,<7",
 ]
