@@ -34,7 +34,7 @@ CONTROL_QOS = QoSProfile(
 #: the samples it missed again, and with a writer history of one they would be gone.
 CONTROL_PUBLISHER_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
+    depth=10000,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )

@@ -54,7 +54,7 @@ from joint_space_control.recording.bag_writer import (
 from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection
 
 #: Messages a subscription queues while the recorder is busy writing.
-QUEUE_DEPTH = 1000
+QUEUE_DEPTH = 10000
 #: After a stop signal, the bag is closed once a wait of this long [s] brings no message
 #: received before the signal.
 DRAIN_IDLE = 0.05
