@@ -4,8 +4,10 @@ Sections (all by default): ``compute`` (laws and Pinocchio calls per tick, no RO
 ``in_process`` (plant + law in one process, no ROS), ``pingpong`` (plain rclpy), ``lockstep``
 (sim_bridge + controller over ROS 2), ``realtime`` (1 kHz on the wall clock, with the
 machine's floor: a bare Python thread paced the same way) and ``analyze`` (``jsc analyze``
-per million messages). ``ratios`` and ``goals`` are derived; the CPU time the hypervisor took
-during each part (``cpu_steal_fraction``) says how much the machine itself was disturbed.
+per million messages). Ping-pong and lockstep alternate in ``rounds`` (each row is the
+median round, ``rounds`` keeps them all). ``ratios`` and ``goals`` are derived; the CPU time
+the hypervisor took during each part (``cpu_steal_fraction``) says how much the machine
+itself was disturbed.
 """
 
 from __future__ import annotations
@@ -34,8 +36,12 @@ class Options:
 
     ticks: int = 20_000  # law timings per (robot, law)
     in_process_steps: int = 5_000
-    pingpong_seconds: float = 5.0
-    lockstep_seconds: float = 5.0
+    pingpong_seconds: float = 6.0
+    lockstep_seconds: float = 6.0
+    # ping-pong and lockstep alternate this many times, each run for its seconds / rounds:
+    # the ratio is the median of ratios measured minutes apart at most, not one of two
+    # numbers taken at different moments of a shared, drifting machine
+    rounds: int = 3
     realtime_seconds: float = 30.0
     analyze_seconds: float = 20.0  # simulated time recorded for jsc analyze
     floor_seconds: float = 10.0  # 1 kHz pacing without ROS
@@ -49,6 +55,7 @@ class Options:
             in_process_steps=500,
             pingpong_seconds=0.5,
             lockstep_seconds=0.5,
+            rounds=1,
             realtime_seconds=1.0,
             analyze_seconds=0.5,
             floor_seconds=1.0,
@@ -75,11 +82,17 @@ def run(
     }
     steal: dict[str, float | None] = {}
     result["cpu_steal_fraction"] = steal  # CPU time the hypervisor took, per part
+    steal_rounds: dict[str, list[float]] = {}
 
     def measured(name: str, run_part: Callable[[], Any]) -> Any:
         meter = machine.StealMeter()
         value = run_part()
-        steal[name] = meter.fraction()
+        fraction = meter.fraction()
+        if fraction is not None:  # parts run in rounds: the mean over them
+            steal_rounds.setdefault(name, []).append(fraction)
+            steal[name] = sum(steal_rounds[name]) / len(steal_rounds[name])
+        else:
+            steal.setdefault(name, None)
         return value
 
     if "compute" in sections:
@@ -100,28 +113,46 @@ def run(
                 for law in LAWS
             ],
         )
-    # per robot, the ping-pong right before the loops it is compared with
-    for robot in ROBOTS:
-        if "pingpong" in sections:
-            result.setdefault("pingpong", []).append(
-                measured(
+    # per round and robot, the ping-pong right before the loops it is compared with
+    rounds = max(1, options.rounds)
+    pingpongs: list[dict[str, Any]] = []
+    loops: list[dict[str, Any]] = []
+    for k in range(rounds):
+        for robot in ROBOTS:
+            if "pingpong" in sections:
+                row = measured(
                     f"pingpong_{robot}",
-                    lambda robot=robot: ros.pingpong(robot, options.pingpong_seconds, log),
+                    lambda robot=robot: ros.pingpong(
+                        robot, options.pingpong_seconds / rounds, log
+                    ),
                 )
-            )
-        if "lockstep" in sections:
-            result.setdefault("lockstep", []).extend(
-                measured(
+                pingpongs.append({**row, "round": k})
+            if "lockstep" in sections:
+                rows = measured(
                     f"lockstep_{robot}",
-                    lambda robot=robot: ros.lockstep(
-                        out / "runs" / f"lockstep_{robot}",
+                    lambda robot=robot, k=k: ros.lockstep(
+                        out / "runs" / f"lockstep_{robot}_{k}",
                         robot,
                         LAWS,
-                        options.lockstep_seconds,
+                        options.lockstep_seconds / rounds,
                         log,
                     ),
                 )
+                loops.extend({**row, "round": k} for row in rows)
+    if pingpongs:
+        result["pingpong"] = [
+            median_row([r for r in pingpongs if r["robot"] == robot], "round_trips_per_s")
+            for robot in ROBOTS
+        ]
+    if loops:
+        result["lockstep"] = [
+            median_row(
+                [r for r in loops if r["robot"] == robot and r["law"] == law], "steps_per_s"
             )
+            for robot in ROBOTS
+            for law in LAWS
+        ]
+    result["rounds"] = {"pingpong": pingpongs, "lockstep": loops}
     if "realtime" in sections:
         log(f"realtime floor: a Python thread paced at 1 kHz, {options.floor_seconds:g} s")
         result[FLOOR] = measured(FLOOR, lambda: compute.pacing_floor(options.floor_seconds))
@@ -156,20 +187,49 @@ def _find(rows: Sequence[dict[str, Any]], **match: Any) -> dict[str, Any] | None
     return None
 
 
+def median_row(rows: Sequence[dict[str, Any]], key: str) -> dict[str, Any]:
+    """The row with the median ``key`` (the lower middle one for an even count), with every
+    row's value under ``<key>_rounds``."""
+    ordered = sorted(rows, key=lambda r: r[key])
+    row = dict(ordered[(len(ordered) - 1) // 2])
+    row.pop("round", None)
+    row[f"{key}_rounds"] = [r[key] for r in rows]
+    return row
+
+
+def _paired_ratio(result: dict[str, Any], robot: str, law: str) -> tuple[float, list[float]]:
+    """Median over the rounds of loop / ping-pong measured in the same round, and each."""
+    rounds = result.get("rounds", {})
+    pp = {
+        r["round"]: r["round_trips_per_s"]
+        for r in rounds.get("pingpong", [])
+        if r["robot"] == robot
+    }
+    each = [
+        r["steps_per_s"] / pp[r["round"]]
+        for r in rounds.get("lockstep", [])
+        if r["robot"] == robot and r["law"] == law and r["round"] in pp
+    ]
+    if not each:
+        return math.nan, []
+    ordered = sorted(each)
+    return ordered[(len(ordered) - 1) // 2], each
+
+
 def ratios(result: dict[str, Any]) -> list[dict[str, Any]]:
-    """The lockstep loop against the plain ping-pong and against the in-process ceiling."""
+    """The lockstep loop against the plain ping-pong (the median of the ratios of each round)
+    and against the in-process ceiling."""
     out = []
     for loop in result.get("lockstep", []):
         robot, law = loop["robot"], loop["law"]
-        pp = _find(result.get("pingpong", []), robot=robot)
         ceiling = _find(result.get("in_process", []), robot=robot, law=law)
+        over_pingpong, each = _paired_ratio(result, robot, law)
         out.append(
             {
                 "robot": robot,
                 "law": law,
-                "loop_over_pingpong": loop["steps_per_s"] / pp["round_trips_per_s"]
-                if pp
-                else math.nan,
+                "loop_over_pingpong": over_pingpong,
+                "loop_over_pingpong_rounds": each,
                 "loop_over_in_process": loop["steps_per_s"] / ceiling["steps_per_s"]
                 if ceiling
                 else math.nan,
@@ -283,6 +343,20 @@ def format_table(result: dict[str, Any]) -> str:
                     f" {_f(cb.get('p50_us')):>12} / {_f(cb.get('p99_us')):<8}"
                     f" {_f(lat.get('p50_us')):>10} / {_f(lat.get('p99_us'))}"
                 )
+        rounds = max(
+            (len(r.get("loop_over_pingpong_rounds", [])) for r in result["ratios"]), default=0
+        )
+        if rounds > 1:
+            lines.append(
+                f"  (medians of {rounds} alternating rounds; loop/pp is the median of the ratios "
+                "of each round: "
+                + "; ".join(
+                    f"{r['robot']} {r['law']} "
+                    + " ".join(_f(x, 2) for x in r["loop_over_pingpong_rounds"])
+                    for r in result["ratios"]
+                )
+                + ")"
+            )
         lines.append("")
     floor = result.get(FLOOR)
     if floor:
