@@ -21,10 +21,9 @@ from typing import Any
 import rclpy
 import rclpy.duration
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.executors import SingleThreadedExecutor
-from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from joint_space_control.experiments.client import RosClient
 from joint_space_control.experiments.domains import lease_domain
 from joint_space_control.experiments.processes import ProcessGroup, isolated_env
 from joint_space_control.model.dynamics import RobotModel
@@ -45,15 +44,11 @@ def joints_of(robot: str) -> tuple[str, ...]:
     return RobotModel(resolve_robot(robot, "")).joint_names
 
 
-class Observer:
+class Observer(RosClient):
     """A client node in the run's domain: /diagnostics, the reference, the sim's services."""
 
     def __init__(self, domain_id: int) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain_id)
-        self.node = rclpy.create_node(f"jsc_bench_{domain_id}", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
+        super().__init__(domain_id, f"jsc_bench_{domain_id}")
         self.latest: dict[str, dict[str, float | str]] = {}
         self.node.create_subscription(
             DiagnosticArray, "/diagnostics", self._on_diagnostics, DIAGNOSTICS_QOS
@@ -65,16 +60,6 @@ class Observer:
 
     def status(self, node_name: str) -> dict[str, float | str] | None:
         return self.latest.get(f"{node_name}: control loop")
-
-    def spin_until(
-        self, done: Callable[[], bool], timeout: float, what: str, check: Callable[[], None]
-    ) -> None:
-        end = time.monotonic() + timeout
-        while not done():
-            if time.monotonic() > end:
-                raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
-            check()
-            self.executor.spin_once(timeout_sec=0.05)
 
     def wait_for_loop(self, check: Callable[[], None], timeout: float = 30.0) -> None:
         """Until the simulator and a controller are connected both ways."""
@@ -98,17 +83,6 @@ class Observer:
         if not self._ref_pub.wait_for_all_acked(rclpy.duration.Duration(seconds=10.0)):
             raise TimeoutError("reference not acknowledged")
 
-    def trigger(self, service: str, check: Callable[[], None], timeout: float = 10.0) -> None:
-        client = self.node.create_client(Trigger, service)
-        try:
-            self.spin_until(client.service_is_ready, timeout, f"service {service}", check)
-            future = client.call_async(Trigger.Request())
-            self.spin_until(future.done, timeout, f"answer of {service}", check)
-            if not future.result().success:
-                raise RuntimeError(f"{service}: {future.result().message}")
-        finally:
-            self.node.destroy_client(client)
-
     def wait_for_total(
         self, node_name: str, key: str, at_least: float, check: Callable[[], None], timeout: float
     ) -> dict[str, float | str]:
@@ -120,11 +94,6 @@ class Observer:
             check,
         )
         return dict(self.status(node_name))
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
 
 
 def _summary(status: Mapping[str, Any], keys: Sequence[str]) -> dict[str, float]:

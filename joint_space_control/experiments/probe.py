@@ -4,7 +4,6 @@ services (what ``ros2 param set`` uses) and collects joint states."""
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -14,14 +13,11 @@ import numpy as np
 import rclpy
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.executors import ShutdownException, SingleThreadedExecutor, TimeoutException
-from rclpy.parameter import Parameter, parameter_value_to_python
-from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from joint_space_control.experiments.client import RosClient
 from joint_space_control.nodes.control_path import ControlPath
 from joint_space_control.nodes.diagnostics import DIAGNOSTICS_QOS, statuses
 from joint_space_control.nodes.messages import REFERENCE_QOS, stamp_to_ns
@@ -58,17 +54,13 @@ class Recording:
         )
 
 
-class LoopProbe:
+class LoopProbe(RosClient):
     """Owns its own rclpy context in the given domain; close() when done."""
 
     def __init__(self, domain_id: int, name: str = "jsc_probe") -> None:
-        os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain_id)
-        self.node = rclpy.create_node(name, context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
+        super().__init__(domain_id, name)
         self.recording = Recording()
+        self._rest_due = 0.0
         # The loop's own topics are taken by a dedicated wait-set loop: through the executor
         # (a wait-set rebuild per message) the probe falls behind a lockstep loop that runs
         # faster than real time. One message per topic and wait, as an executor takes them,
@@ -78,7 +70,6 @@ class LoopProbe:
         self.answered_ns = -1  # newest stamp answered on effort_command
         self._observed.subscription(JointState, "effort_command", self._on_command, RECORD_QOS)
         self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
-        self._param_clients: dict[str, AsyncParameterClient] = {}
         self._diagnostics: dict[str, dict[str, float | str]] | None = None
 
     def observe(self, msg_type: type, topic: str, callback: Callable[[Any], None]) -> None:
@@ -100,45 +91,17 @@ class LoopProbe:
         self.answered_ns = max(self.answered_ns, stamp_to_ns(msg.header.stamp))
 
     # -- spinning ----------------------------------------------------------------------
-    def spin_until(
-        self,
-        done: Callable[[], bool],
-        timeout: float,
-        what: str,
-        check: Callable[[], None] | None = None,
-    ) -> None:
-        end = time.monotonic() + timeout
-        rest_due = 0.0
-        while not done():
-            now = time.monotonic()
-            if now > end:
-                raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
-            if check is not None:
-                check()
-            self._observed.spin_once(OBSERVED_WAIT)
-            if now >= rest_due:  # everything the executor has ready, every REST_PERIOD
-                self._serve_rest()
-                rest_due = now + REST_PERIOD
-
-    def _serve_rest(self, limit: int = 1000) -> None:
-        """Whatever the executor has ready (services, parameter clients, diagnostics, the
-        caller's own subscriptions on ``self.node``), all of it, without waiting."""
-        for _ in range(limit):
-            try:
-                handler, _, _ = self.executor.wait_for_ready_callbacks(0)
-            except (TimeoutException, ShutdownException):
-                return
-            handler()
-            if handler.exception() is not None:
-                raise handler.exception()
+    def spin_once(self) -> None:
+        """The observed topics for at most OBSERVED_WAIT, and every REST_PERIOD everything
+        else the executor has ready."""
+        self._observed.spin_once(OBSERVED_WAIT)
+        now = time.monotonic()
+        if now >= self._rest_due:
+            self.serve_ready()
+            self._rest_due = now + REST_PERIOD
 
     def latest_time(self) -> float:
         return self.recording.stamps[-1] * 1e-9 if self.recording.stamps else -1.0
-
-    def spin_for(self, seconds: float) -> None:
-        """Handle incoming messages for ``seconds`` of wall time."""
-        end = time.monotonic() + seconds
-        self.spin_until(lambda: time.monotonic() >= end, seconds + 1.0, "nothing")
 
     def run_until(
         self, t_sim: float, timeout: float, check: Callable[[], None] | None = None
@@ -249,42 +212,6 @@ class LoopProbe:
         if not self._ref_pub.wait_for_all_acked(rclpy.duration.Duration(seconds=5.0)):
             raise TimeoutError("reference not acknowledged by every subscriber")
 
-    def call_trigger(self, service: str, timeout: float = 10.0) -> Trigger.Response:
-        client = self.node.create_client(Trigger, service)
-        try:
-            self.spin_until(client.service_is_ready, timeout, f"service {service}")
-            future = client.call_async(Trigger.Request())
-            self.spin_until(future.done, timeout, f"answer of {service}")
-            return future.result()
-        finally:
-            self.node.destroy_client(client)
-
-    def _param_client(self, node_name: str, timeout: float) -> AsyncParameterClient:
-        """The (cached) parameter client of a remote node, once its services are up."""
-        client = self._param_clients.get(node_name)
-        if client is None:
-            client = AsyncParameterClient(self.node, node_name)
-            self._param_clients[node_name] = client
-        self.spin_until(client.services_are_ready, timeout, f"parameter services of {node_name}")
-        return client
-
-    def set_parameters(
-        self, node_name: str, values: dict[str, Any], timeout: float = 10.0
-    ) -> list[Any]:
-        """Set parameters of a remote node; returns the SetParametersResult of each."""
-        client = self._param_client(node_name, timeout)
-        future = client.set_parameters([Parameter(k, value=v) for k, v in values.items()])
-        self.spin_until(future.done, timeout, f"set_parameters on {node_name}")
-        return list(future.result().results)
-
-    def get_parameters(self, node_name: str, names: list[str], timeout: float = 10.0) -> list:
-        client = self._param_client(node_name, timeout)
-        future = client.get_parameters(names)
-        self.spin_until(future.done, timeout, f"get_parameters on {node_name}")
-        return [parameter_value_to_python(v) for v in future.result().values]
-
     def close(self) -> None:
         self._observed.close()
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        super().close()

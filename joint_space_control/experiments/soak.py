@@ -33,16 +33,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import rclpy
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.executors import ShutdownException, SingleThreadedExecutor, TimeoutException
-from rclpy.parameter import Parameter, parameter_value_to_python
-from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
-from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from joint_space_control.analysis.soak_metrics import (
@@ -56,6 +51,7 @@ from joint_space_control.analysis.soak_metrics import (
     passed,
     verdict,
 )
+from joint_space_control.experiments.client import RosClient
 from joint_space_control.experiments.domains import lease_domain
 from joint_space_control.experiments.processes import ProcessGroup
 from joint_space_control.model.dynamics import RobotModel
@@ -123,17 +119,13 @@ def rss_of(pid: int) -> int | None:
         return None
 
 
-class SoakObserver:
+class SoakObserver(RosClient):
     """The observer node, in its own rclpy context in the run's domain: effort commands
     through a dedicated wait-set loop (every one of them, 1 kHz), the rest (parameters,
     services, /diagnostics) through an executor served between them."""
 
     def __init__(self, domain_id: int, audit: CommandAudit) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain_id)
-        self.node = rclpy.create_node(f"jsc_soak_{domain_id}", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
+        super().__init__(domain_id, f"jsc_soak_{domain_id}")
         self.audit = audit
         self._image: JointStateImage | None = None
         self._commands = ControlPath(self.node)
@@ -151,7 +143,6 @@ class SoakObserver:
             DiagnosticArray, "/diagnostics", self._on_diagnostics, DIAGNOSTICS_QOS
         )
         self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
-        self._params: dict[str, AsyncParameterClient] = {}
 
     def _on_command(self, raw: bytes, info: dict[str, int]) -> None:
         image = self._image
@@ -177,33 +168,15 @@ class SoakObserver:
                 self.warnings[name] = self.warnings.get(name, 0) + 1
 
     # -- spinning ----------------------------------------------------------------------
-    def spin_until(
-        self, done: Callable[[], bool], timeout: float, what: str, check: Callable[[], None]
-    ) -> None:
-        end = time.monotonic() + timeout
-        while not done():
-            if time.monotonic() > end:
-                raise TimeoutError(f"timed out after {timeout:g} s waiting for {what}")
-            check()
-            self.spin_once()
-
     def spin_once(self) -> None:
         """Commands for at most OBSERVED_WAIT, then everything else that is ready."""
         self._commands.spin_once(OBSERVED_WAIT)
-        for _ in range(1000):
-            try:
-                handler, _, _ = self.executor.wait_for_ready_callbacks(0)
-            except (TimeoutException, ShutdownException):
-                return
-            handler()
-            if handler.exception() is not None:
-                raise handler.exception()
+        self.serve_ready()
 
     # -- the graph and the loop ----------------------------------------------------------
     def wait_for_loop(self, controller: str, check: Callable[[], None]) -> None:
         n = self.node
-        for name in (controller, "sim_bridge"):
-            self._params[name] = AsyncParameterClient(n, name)
+        clients = [self.parameter_client(name, 60.0, check) for name in (controller, "sim_bridge")]
         self.spin_until(
             lambda: (
                 n.count_publishers("joint_states") >= 1
@@ -212,7 +185,7 @@ class SoakObserver:
                 and n.count_subscribers("effort_command") >= 2  # sim_bridge and this
                 and self._command_sub.get_publisher_count() >= 1
                 and self._ref_pub.get_subscription_count() >= 1
-                and all(c.services_are_ready() for c in self._params.values())
+                and all(c.services_are_ready() for c in clients)
             ),
             60.0,
             "the simulator and the controller to connect",
@@ -231,37 +204,9 @@ class SoakObserver:
         ]
         self._ref_pub.publish(msg)
 
-    def trigger(self, service: str, check: Callable[[], None], timeout: float = 10.0) -> None:
-        client = self.node.create_client(Trigger, service)
-        try:
-            self.spin_until(client.service_is_ready, timeout, f"service {service}", check)
-            future = client.call_async(Trigger.Request())
-            self.spin_until(future.done, timeout, f"answer of {service}", check)
-            if not future.result().success:
-                raise RuntimeError(f"{service}: {future.result().message}")
-        finally:
-            self.node.destroy_client(client)
-
-    def set_parameters(
-        self, node: str, values: dict[str, Any], check: Callable[[], None]
-    ) -> list[Any]:
-        """SetParametersResult per parameter, as the node answered."""
-        future = self._params[node].set_parameters(
-            [Parameter(k, value=v) for k, v in values.items()]
-        )
-        self.spin_until(future.done, 10.0, f"set_parameters on {node}", check)
-        return list(future.result().results)
-
-    def get_parameters(self, node: str, names: list[str], check: Callable[[], None]) -> list:
-        future = self._params[node].get_parameters(names)
-        self.spin_until(future.done, 10.0, f"get_parameters on {node}", check)
-        return [parameter_value_to_python(v) for v in future.result().values]
-
     def close(self) -> None:
         self._commands.close()
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        super().close()
 
 
 def run(
@@ -389,11 +334,11 @@ def _change_gains(
 ) -> None:
     """Set ``gains`` (must be accepted); with ``invalid`` also send INVALID_UPDATE (must be
     rejected) and read the gains back (must still be ``gains``)."""
-    results = observer.set_parameters(controller, gains, check)
+    results = observer.set_parameters(controller, gains, check=check)
     tally.valid(all(r.successful for r in results))
     if invalid:
-        (result,) = observer.set_parameters(controller, INVALID_UPDATE, check)
-        kept = observer.get_parameters(controller, list(gains), check)
+        (result,) = observer.set_parameters(controller, INVALID_UPDATE, check=check)
+        kept = observer.get_parameters(controller, list(gains), check=check)
         tally.invalid(
             not result.successful,
             result.reason,

@@ -1,0 +1,140 @@
+"""A client node in its own rclpy context and ROS domain: the base of every node that drives
+or watches a run from outside (the test probe, the bench and soak observers).
+
+It waits on conditions while spinning, calls ``std_srvs/Trigger`` services and sets and reads
+parameters through the standard parameter services (what ``ros2 param`` uses).
+Subclasses decide what one turn of spinning serves (:meth:`RosClient.spin_once`).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from typing import Any
+
+import rclpy
+from rclpy.executors import ShutdownException, SingleThreadedExecutor, TimeoutException
+from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.parameter_client import AsyncParameterClient
+from std_srvs.srv import Trigger
+
+#: Longest wait [s] of one turn of the default :meth:`RosClient.spin_once`.
+SPIN_WAIT = 0.05
+
+
+class RosClient:
+    """Owns its rclpy context in ``domain_id`` (localhost discovery unless the environment
+    says otherwise); :meth:`close` when done."""
+
+    def __init__(self, domain_id: int, name: str) -> None:
+        os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._param_clients: dict[str, AsyncParameterClient] = {}
+
+    # -- spinning ----------------------------------------------------------------------
+    def spin_once(self) -> None:
+        """One turn: executor work, waiting at most :data:`SPIN_WAIT`."""
+        self.executor.spin_once(timeout_sec=SPIN_WAIT)
+
+    def serve_ready(self, limit: int = 1000) -> None:
+        """Everything the executor has ready (services, parameter clients, subscriptions on
+        ``self.node``), without waiting; exceptions of the callbacks propagate."""
+        for _ in range(limit):
+            try:
+                handler, _, _ = self.executor.wait_for_ready_callbacks(0)
+            except (TimeoutException, ShutdownException):
+                return
+            handler()
+            if handler.exception() is not None:
+                raise handler.exception()
+
+    def spin_until(
+        self,
+        done: Callable[[], bool],
+        timeout: float,
+        what: str,
+        check: Callable[[], None] | None = None,
+    ) -> None:
+        """Spin until ``done()``; ``check()`` (e.g. "are the node processes alive") each
+        turn; TimeoutError naming ``what`` after ``timeout`` seconds."""
+        end = time.monotonic() + timeout
+        while not done():
+            if time.monotonic() > end:
+                raise TimeoutError(f"timed out after {timeout:g} s waiting for {what}")
+            if check is not None:
+                check()
+            self.spin_once()
+
+    def spin_for(self, seconds: float, check: Callable[[], None] | None = None) -> None:
+        """Handle what comes in for ``seconds`` of wall time."""
+        end = time.monotonic() + seconds
+        self.spin_until(lambda: time.monotonic() >= end, seconds + 1.0, "nothing", check)
+
+    # -- services and parameters ---------------------------------------------------------
+    def call_trigger(
+        self, service: str, timeout: float = 10.0, check: Callable[[], None] | None = None
+    ) -> Trigger.Response:
+        client = self.node.create_client(Trigger, service)
+        try:
+            self.spin_until(client.service_is_ready, timeout, f"service {service}", check)
+            future = client.call_async(Trigger.Request())
+            self.spin_until(future.done, timeout, f"answer of {service}", check)
+            return future.result()
+        finally:
+            self.node.destroy_client(client)
+
+    def trigger(
+        self, service: str, check: Callable[[], None] | None = None, timeout: float = 10.0
+    ) -> None:
+        """:meth:`call_trigger`, raising RuntimeError with the answer when it failed."""
+        response = self.call_trigger(service, timeout, check)
+        if not response.success:
+            raise RuntimeError(f"{service}: {response.message}")
+
+    def parameter_client(
+        self, node_name: str, timeout: float = 10.0, check: Callable[[], None] | None = None
+    ) -> AsyncParameterClient:
+        """The (cached) parameter client of a remote node, once its services are up."""
+        client = self._param_clients.get(node_name)
+        if client is None:
+            client = AsyncParameterClient(self.node, node_name)
+            self._param_clients[node_name] = client
+        self.spin_until(
+            client.services_are_ready, timeout, f"parameter services of {node_name}", check
+        )
+        return client
+
+    def set_parameters(
+        self,
+        node_name: str,
+        values: dict[str, Any],
+        timeout: float = 10.0,
+        check: Callable[[], None] | None = None,
+    ) -> list[Any]:
+        """Set parameters of a remote node; returns the SetParametersResult of each."""
+        client = self.parameter_client(node_name, timeout, check)
+        future = client.set_parameters([Parameter(k, value=v) for k, v in values.items()])
+        self.spin_until(future.done, timeout, f"set_parameters on {node_name}", check)
+        return list(future.result().results)
+
+    def get_parameters(
+        self,
+        node_name: str,
+        names: list[str],
+        timeout: float = 10.0,
+        check: Callable[[], None] | None = None,
+    ) -> list[Any]:
+        client = self.parameter_client(node_name, timeout, check)
+        future = client.get_parameters(names)
+        self.spin_until(future.done, timeout, f"get_parameters on {node_name}", check)
+        return [parameter_value_to_python(v) for v in future.result().values]
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
