@@ -209,7 +209,7 @@ class LoopProbe(RosClient):
                 point.accelerations = [float(a) for a in accelerations[k]]
             msg.points.append(point)
         self._ref_pub.publish(msg)
-        if not self._ref_pub.wait_for_all_acked(rclpy.duration.Duration(seconds=5.0)):
+        if not self._ref_pub.wait_for_all_acked(rclpy.duration.Duration(seconds=20.0)):
             raise TimeoutError("reference not acknowledged by every subscriber")
 
     def close(self) -> None:

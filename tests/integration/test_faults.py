@@ -293,19 +293,26 @@ def test_killed_controller_brakes_the_plant_and_a_new_one_takes_over_bumplessly(
     probe.run_until(t_braked, 30.0, rig.group.check_alive)  # the arm stops and holds
 
     t, q, dq, tau = probe.recording.arrays()
-    # The plant applies a command at the first physics step after it arrives (its transit
-    # varies with the load) and shows it in the state published then: the last command is
-    # first applied at t_applied; braking starts at the first state whose torque is none of
-    # the commands; the timeout runs from the last command's arrival, one step before.
-    applied = np.all(tau == np.clip(last_tau, -LIMITS, LIMITS), axis=1)
-    assert applied.any(), (last_stamp, last_tau)
-    t_applied = t[np.argmax(applied)]
-    commanded = {tuple(np.clip(e, -LIMITS, LIMITS)) for _, e in rig.commands}
-    braked = (t > t_applied) & np.array([tuple(x) not in commanded for x in tau])
-    assert braked.any(), (t_applied, tau[t > t_applied][:3])
-    t_brake = t[np.argmax(braked)]
-    waited = t_brake - (t_applied - 0.001)
-    assert timeout < waited <= timeout + 0.0025, waited  # 0.1 s + two 1 ms steps
+    # After the kill the plant holds the last command it got, the same torque state after
+    # state, until the timeout: the longest run of equal torques around the last command
+    # the probe saw (the probe may miss the very last one, so it is not matched by value).
+    # The timeout runs from that command's arrival, one step before its first state.
+    window = np.flatnonzero((t > last_stamp * 1e-9 - 0.05) & (t < last_stamp * 1e-9 + 0.5))
+    same = np.all(tau[window[1:]] == tau[window[:-1]], axis=1)
+    best, start, k = 0, 0, 0
+    while k < same.size:
+        if same[k]:
+            end = k
+            while end < same.size and same[end]:
+                end += 1
+            if end - k > best:
+                best, start = end - k, k
+            k = end
+        else:
+            k += 1
+    t_hold, t_brake = t[window[start]], t[window[start + best + 1]]
+    waited = t_brake - (t_hold - 0.001)
+    assert timeout < waited <= timeout + 0.0025, (waited, t_hold, t_brake)  # + two 1 ms steps
     assert np.max(np.abs(dq[-1])) < 1e-2
     q_held, brake_tau = q[-1], tau[-1]
 
@@ -321,7 +328,10 @@ def test_killed_controller_brakes_the_plant_and_a_new_one_takes_over_bumplessly(
     assert np.all(np.abs(first_new - g) < 0.02 * LIMITS), (first_new, g)
     assert np.all(np.abs(g) > 0.05 * LIMITS)  # the check is not trivial: gravity is large
     t, q, dq, tau = probe.recording.arrays()
-    assert np.max(np.abs(q[-1] - q_held)) < 5e-3  # held where it stopped (a few mm: transient)
+    # it holds the configuration it measured first (the brakes may have crept until then)
+    q_start = q[np.argmin(np.abs(t - rig.commands[killed_at][0] * 1e-9))]
+    assert np.max(np.abs(q_start - q_held)) < 1e-2
+    assert np.max(np.abs(q[-1] - q_start)) < 2e-3, q[-1] - q_start
     status = rig.diagnostics("sim_bridge", lambda s: s["braking"] == 0)
     assert status["level"] < 2
     assert_all_commands_safe(rig.commands)
@@ -345,6 +355,24 @@ def test_restarted_simulator_is_detected_and_the_controller_resumes_cleanly(make
     old.stop()
     seen = len(commands)
     q0 = [0.2, 0.1]
+    # The new simulator's states only: a subscription made now matches no dead publisher
+    # (the probe's own recording may still hold states of the old one, which ran ahead).
+    states: list[tuple[int, list[float]]] = []
+    loop.probe.observe(
+        JointState,
+        "joint_states",
+        lambda m: states.append((stamp_to_ns(m.header.stamp), list(m.position))),
+    )
+
+    def run_until(t: float) -> np.ndarray:
+        loop.probe.spin_until(
+            lambda: bool(states) and states[-1][0] >= round(t * 1e9),
+            60.0,
+            f"the new simulator at t={t} s",
+            loop.group.check_alive,
+        )
+        return np.array(states[-1][1])
+
     loop.group.start("sim_bridge", {"robot": ROBOT, "mode": "lockstep", "initial_positions": q0})
     loop.probe.spin_until(
         lambda: any(s == 0 for s, _ in commands[seen:]),
@@ -355,12 +383,7 @@ def test_restarted_simulator_is_detected_and_the_controller_resumes_cleanly(make
     first = np.array(next(e for s, e in commands[seen:] if s == 0))
     g0 = RobotModel(resolve_robot(ROBOT)).gravity(np.array(q0))
     np.testing.assert_allclose(first, g0, rtol=1e-9, atol=1e-9)
-    loop.probe.recording.stamps.clear()  # the new simulator's time only
-    loop.probe.recording.positions.clear()
-    loop.probe.recording.velocities.clear()
-    loop.probe.recording.efforts.clear()
-    loop.run_until(0.3)
-    q, _ = loop.final_state()
+    q = run_until(0.3)
     np.testing.assert_allclose(q, q0, atol=1e-3)  # held, the old set-point is forgotten
     status = loop.probe.wait_for_diagnostics(
         ["pd_gravity_controller: control loop"], check=loop.group.check_alive
@@ -368,8 +391,8 @@ def test_restarted_simulator_is_detected_and_the_controller_resumes_cleanly(make
     assert status["restarts"] == 1
     # a new reference is followed
     loop.probe.send_reference(J, [[0.4, 0.0]])
-    loop.run_until(2.0)
-    q, _ = loop.final_state()
+    t_sent = states[-1][0] * 1e-9
+    q = run_until(t_sent + 1.7)
     target = np.array([0.4, 0.0])
     assert np.linalg.norm(q - target) < 0.7 * np.linalg.norm(np.array(q0) - target), q
 
