@@ -104,7 +104,15 @@ class ClosedLoop:
         response = self.probe.call_trigger("/sim_bridge/pause")
         if not response.success:
             raise RuntimeError(f"sim_bridge did not pause: {response.message}")
-        self.probe.spin_for(settle)
+        # until no state came for ``settle`` seconds: the probe may lag a loop that runs
+        # faster than real time by more than that
+        stamps = self.probe.recording.stamps
+        for _ in range(100):
+            seen = len(stamps)
+            self.probe.spin_for(settle)
+            if len(stamps) == seen:
+                return
+        raise RuntimeError("joint states still coming after the simulator paused")
 
     def final_state(self) -> tuple[np.ndarray, np.ndarray]:
         _, q, dq, _ = self.probe.recording.arrays()

@@ -96,6 +96,11 @@ class ControlPath:
         self._wake = GuardCondition(None, None, context=node.context)
         self._sigint: SignalHandlerGuardCondition | None = None
         self._prepared: _Prepared | None = None
+        # close() from another thread while this one waits on the handles (Ctrl-C closing a
+        # run whose thread spins): the serving thread lets go of them on its way out
+        self._guard = threading.Lock()
+        self._serving = False
+        self._close_pending = False
 
     def __bool__(self) -> bool:
         return bool(self._subscriptions or self._timer)
@@ -179,7 +184,17 @@ class ControlPath:
             self.close()
 
     def close(self) -> None:
-        """Let go of the rcl handles and the signal guard condition (idempotent)."""
+        """Let go of the rcl handles and the signal guard condition (idempotent). Called
+        while another thread serves, it stops that thread, which lets go when it returns
+        (releasing handles a wait is using would crash the process)."""
+        with self._guard:
+            if self._serving:
+                self._close_pending = self._stop = True
+                self._wake.trigger()
+                return
+            self._release()
+
+    def _release(self) -> None:
         if self._prepared is not None:
             self._prepared.close()
             self._prepared = None
@@ -192,17 +207,28 @@ class ControlPath:
         change; returns the number of messages handed out."""
         context = self.node.context
         count = 0
-        while not self._stop and context.ok():
-            if self._prepared is None or self._prepared.version != self._version:
-                if self._prepared is not None:
-                    self._prepared.close()
-                if self._sigint is None:
-                    self._sigint = SignalHandlerGuardCondition(context)
-                self._prepared = _Prepared(self, self._sigint)
-            done, taken = self._loop(self._prepared, mode)
-            count += taken
-            if done:
-                break
+        with self._guard:
+            if self._stop or not context.ok():
+                return 0
+            self._serving = True
+        try:
+            while not self._stop and context.ok():
+                if self._prepared is None or self._prepared.version != self._version:
+                    if self._prepared is not None:
+                        self._prepared.close()
+                    if self._sigint is None:
+                        self._sigint = SignalHandlerGuardCondition(context)
+                    self._prepared = _Prepared(self, self._sigint)
+                done, taken = self._loop(self._prepared, mode)
+                count += taken
+                if done:
+                    break
+        finally:
+            with self._guard:
+                self._serving = False
+                if self._close_pending:
+                    self._close_pending = False
+                    self._release()
         return count
 
     def _loop(self, prepared: _Prepared, mode: _Mode) -> tuple[bool, int]:
