@@ -3,6 +3,7 @@ scenario in its short (CI) form."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -94,9 +95,14 @@ def test_ctrl_c_stops_every_node_of_a_running_experiment(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
+        # what jsc experiment left running (none, if it works): found, then stopped, also
+        # when the test fails
+        leftovers = subprocess.run(
+            ["pgrep", "-f", str(tmp_path)], capture_output=True, text=True
+        ).stdout.split()
+        for pid in leftovers:
+            with contextlib.suppress(ProcessLookupError, ValueError):
+                os.kill(int(pid), signal.SIGKILL)
     assert proc.returncode == 130, output
     assert "interrupted" in output
-    leftovers = subprocess.run(
-        ["pgrep", "-f", str(tmp_path)], capture_output=True, text=True
-    ).stdout.split()
     assert leftovers == [], f"node processes still running: {leftovers}"
