@@ -176,7 +176,8 @@ class SoakObserver(RosClient):
     # -- the graph and the loop ----------------------------------------------------------
     def wait_for_loop(self, controller: str, check: Callable[[], None]) -> None:
         n = self.node
-        clients = [self.parameter_client(name, 60.0, check) for name in (controller, "sim_bridge")]
+        for name in (controller, "sim_bridge"):
+            self.parameter_client(name, 60.0, check)  # returns once its services are up
         self.spin_until(
             lambda: (
                 n.count_publishers("joint_states") >= 1
@@ -185,7 +186,6 @@ class SoakObserver(RosClient):
                 and n.count_subscribers("effort_command") >= 2  # sim_bridge and this
                 and self._command_sub.get_publisher_count() >= 1
                 and self._ref_pub.get_subscription_count() >= 1
-                and all(c.services_are_ready() for c in clients)
             ),
             60.0,
             "the simulator and the controller to connect",
