@@ -299,17 +299,10 @@ def test_killed_controller_brakes_the_plant_and_a_new_one_takes_over_bumplessly(
     # The timeout runs from that command's arrival, one step before its first state.
     window = np.flatnonzero((t > last_stamp * 1e-9 - 0.05) & (t < last_stamp * 1e-9 + 0.5))
     same = np.all(tau[window[1:]] == tau[window[:-1]], axis=1)
-    best, start, k = 0, 0, 0
-    while k < same.size:
-        if same[k]:
-            end = k
-            while end < same.size and same[end]:
-                end += 1
-            if end - k > best:
-                best, start = end - k, k
-            k = end
-        else:
-            k += 1
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], same.astype(int), [0]))))
+    starts, ends = edges[::2], edges[1::2]  # runs of equal torques: [start, end)
+    longest = np.argmax(ends - starts)
+    start, best = starts[longest], ends[longest] - starts[longest]
     t_hold, t_brake = t[window[start]], t[window[start + best + 1]]
     waited = t_brake - (t_hold - 0.001)
     assert timeout < waited <= timeout + 0.0025, (waited, t_hold, t_brake)  # + two 1 ms steps
