@@ -31,6 +31,12 @@ PYPI_REQUIRES = [
     "mcap>=1.2,<2",
     "matplotlib>=3.8,<4",
     "pyyaml>=6,<7",
+    # Robot descriptions as robot packages ship them (model/description.py): the URDF
+    # parser for what Pinocchio does not expose (link inertials, mimic, joint blocks),
+    # lxml to resolve mesh URIs, xacro to expand .xacro files.
+    "yourdfpy>=0.0.56,<0.1",
+    "lxml>=4.9,<7",
+    "xacro>=2,<3",
 ]
 
 # Test, lint and build-check tools (`make test`, `make colcon-check`, .ci/run).
@@ -45,6 +51,9 @@ TEST_REQUIRES = [
     "ruff>=0.17,<0.18",
     "mcap-ros2-support>=0.5,<1",
     "colcon-common-extensions>=0.3,<1",
+    # Real robot descriptions nobody here wrote (UR, Panda, xArm, Kinova, Z1, SO-100/101),
+    # with meshes and package:// URIs: the corpus of tests/unit/test_corpus.py.
+    "example-robot-data>=4.1,<7",
 ]
 
 setup(

@@ -136,7 +136,7 @@ class SimBridge(Node):
         super().__init__("sim_bridge", **kwargs)
         params.declare(self, PARAMETERS)
         v = params.current_values(self, PARAMETERS)
-        model = params.robot_model(v)
+        model = params.robot_model(v, node=self)
         spec = model.spec
         self.joints = model.joint_names
         self.n = len(self.joints)
@@ -157,10 +157,9 @@ class SimBridge(Node):
             physics_rate,
             friction=params.numbers(v, "viscous_friction"),
             payload_mass=params.nonnegative_number(v, "payload_mass"),
-            initial_positions=per_joint(
-                params.numbers(v, "initial_positions"), self.n, "initial_positions"
-            ),
+            initial_positions=self._initial_positions(v, model),
             locked_positions=model.locked_positions,
+            effort_limits=model.effort_limits,
             gui=bool(v["gui"]),
         )
         self.plant.set_torque_rate_limit(
@@ -249,6 +248,22 @@ class SimBridge(Node):
             if any(p.name == "pause_at" for p in changes):
                 self._pause_at_ns = pause_at
         return SetParametersResult(successful=True)
+
+    def _initial_positions(self, values: dict[str, Any], model: Any) -> np.ndarray:
+        """``initial_positions``, clipped into the joint limits (with a log line when it
+        had to be: a zero configuration can lie outside them, Panda joint 4 say)."""
+        q0 = per_joint(params.numbers(values, "initial_positions"), self.n, "initial_positions")
+        if not np.all(np.isfinite(q0)):
+            raise ValueError(f"'initial_positions' must be finite, got {q0.tolist()}")
+        lower, upper = model.position_limits
+        clipped = np.clip(q0, lower, upper)
+        outside = [name for name, a, b in zip(self.joints, q0, clipped, strict=True) if a != b]
+        if outside:
+            self.get_logger().warning(
+                f"initial positions of {outside} are outside their joint limits: clipped "
+                f"into them, starting at {clipped.tolist()}"
+            )
+        return clipped
 
     @staticmethod
     def _pause_time(values: dict[str, Any]) -> int | None:

@@ -31,6 +31,7 @@ import pybullet as pb
 
 from joint_space_control.arrays import nonnegative, per_joint
 from joint_space_control.laws.limits import limit_rate, rate_steps
+from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
 
 GRAVITY = (0.0, 0.0, -9.81)
@@ -57,6 +58,7 @@ class Plant:
         payload_mass: float = 0.0,
         initial_positions: Sequence[float] | None = None,
         locked_positions: dict[str, float] | None = None,
+        effort_limits: Sequence[float] | None = None,
         gui: bool = False,
     ) -> None:
         if not (np.isfinite(physics_rate) and physics_rate > 0):
@@ -67,7 +69,7 @@ class Plant:
         self.dt = 1.0 / physics_rate
         self.client = pb.connect(pb.GUI if gui else pb.DIRECT)
         try:
-            self._load(self.joint_names, locked_positions or {})
+            self._load(self.joint_names, locked_positions or {}, effort_limits)
         except Exception:
             pb.disconnect(self.client)
             raise
@@ -85,17 +87,25 @@ class Plant:
         self.reset()
 
     # -- set-up ------------------------------------------------------------------------
-    def _load(self, joints: tuple[str, ...], locked: dict[str, float]) -> None:
+    def _load(
+        self,
+        joints: tuple[str, ...],
+        locked: dict[str, float],
+        effort_limits: Sequence[float] | None,
+    ) -> None:
         c = self.client
         pb.setGravity(*GRAVITY, physicsClientId=c)
         pb.setTimeStep(self.dt, physicsClientId=c)
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=c)
-        self.body = pb.loadURDF(
-            str(self.spec.urdf_path),
-            useFixedBase=True,
-            flags=pb.URDF_USE_INERTIA_FROM_FILE,
-            physicsClientId=c,
-        )
+        try:
+            self.body = pb.loadURDF(
+                str(self.spec.urdf_path),
+                useFixedBase=True,
+                flags=pb.URDF_USE_INERTIA_FROM_FILE,
+                physicsClientId=c,
+            )
+        except pb.error as err:
+            raise DescriptionError(f"PyBullet cannot load {self.spec.urdf_path}: {err}") from None
         by_name, self.link_names = {}, {}
         for j in range(pb.getNumJoints(self.body, c)):
             info = pb.getJointInfo(self.body, j, c)
@@ -105,11 +115,25 @@ class Plant:
         if missing:
             raise ValueError(f"unknown joints {missing} in {Path(self.spec.urdf_path).name}")
         self._idx = [by_name[name][0] for name in self.joint_names]
-        self.effort_limits = np.array(
-            [by_name[name][1][10] if by_name[name][1][10] > 0 else np.inf for name in joints]
-        )
+        if effort_limits is not None:  # the controller model's (override or URDF)
+            limits = np.broadcast_to(np.asarray(effort_limits, dtype=float), (self.n,))
+            if not np.all(limits > 0):  # inf: no limit (a URDF that says none)
+                raise ValueError(f"effort limits must be > 0, got {limits.tolist()}")
+            self.effort_limits = limits.copy()
+        else:
+            self.effort_limits = np.array(
+                [by_name[name][1][10] if by_name[name][1][10] > 0 else np.inf for name in joints]
+            )
         self._lowest_effort = -self.effort_limits
         self._max_step: np.ndarray | None = None  # torque-rate limit per physics step [N·m]
+        # A link without <inertial> is massless for Pinocchio (and the URDF spec); PyBullet
+        # would give it 1 kg and a unit inertia.
+        inertials = urdf_facts(Path(self.spec.urdf_path)).inertials
+        for j, link in self.link_names.items():
+            if link not in inertials:
+                pb.changeDynamics(
+                    self.body, j, mass=0.0, localInertiaDiagonal=[0.0] * 3, physicsClientId=c
+                )
         for link in range(-1, pb.getNumJoints(self.body, c)):
             pb.changeDynamics(
                 self.body,

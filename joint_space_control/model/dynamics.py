@@ -23,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from joint_space_control.arrays import per_joint
+from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.robots import (
     ACTUATED_JOINT_TYPES,
     RobotSpec,
@@ -57,10 +58,17 @@ class RobotModel:
         joints: Sequence[str] | None = None,
         perturbation: ModelPerturbation | None = None,
         locked_positions: dict[str, float] | None = None,
+        effort_limits: float | Sequence[float] | None = None,
     ) -> None:
         self.spec = spec
         pert = perturbation or ModelPerturbation()
-        full = pin.buildModelFromUrdf(str(spec.urdf_path))
+        self.perturbation = pert
+        try:
+            full = pin.buildModelFromUrdf(str(spec.urdf_path))
+        except (RuntimeError, ValueError) as err:
+            raise DescriptionError(
+                f"Pinocchio cannot read {Path(spec.urdf_path).name}: {' '.join(str(err).split())}"
+            ) from None
         joints = tuple(joints) if joints else spec.default_joints
         self.joint_names = _check_joint_names(joints, full, Path(spec.urdf_path))
         self.locked_positions = _locked_positions(full, self.joint_names, locked_positions)
@@ -76,14 +84,41 @@ class RobotModel:
         if np.any(self.friction < 0):
             raise ValueError("friction must be >= 0")
         self._has_friction = bool(np.any(self.friction))
+        self._effort_override = effort_limits
+        self._effort_limits, self.warnings = self._limits(effort_limits)
+
+    def with_perturbation(self, perturbation: ModelPerturbation) -> RobotModel:
+        """The same robot, joints, locked positions and effort limits, another perturbation."""
+        if perturbation == self.perturbation:
+            return self
+        return RobotModel(
+            self.spec, self.joint_names, perturbation, self.locked_positions, self._effort_override
+        )
 
     # -- limits ----------------------------------------------------------------------
     @property
     def effort_limits(self) -> np.ndarray:
-        """URDF effort limits [N·m or N] of the controlled joints (inf where absent)."""
+        """Effort limits [N·m or N] of the controlled joints: the ``effort_limits`` given, else
+        the URDF's (inf where it says 0 or nothing: see :attr:`warnings`)."""
+        return self._effort_limits.copy()
+
+    def _limits(self, override: float | Sequence[float] | None) -> tuple[np.ndarray, list[str]]:
+        if override is not None and np.size(override) > 0:
+            limits = per_joint(override, self.n, "effort_limits")
+            if not np.all(limits > 0):
+                raise ValueError(f"'effort_limits' must be > 0, got {limits.tolist()}")
+            return limits, []
         iv = [self.model.joints[j].idx_v for j in self._joint_ids]
         lim = np.array(self.model.effortLimit[iv])
-        return np.where(lim > 0, lim, np.inf)
+        unset = [name for name, value in zip(self.joint_names, lim, strict=True) if value <= 0]
+        warnings = []
+        if unset:
+            warnings.append(
+                f"joints {unset} have no effort limit in the description of {self.spec.name} "
+                "(effort 0 or missing): their torque is not limited; set 'effort_limits' "
+                "(one value or one per joint) to limit it"
+            )
+        return np.where(lim > 0, lim, np.inf), warnings
 
     @property
     def position_limits(self) -> tuple[np.ndarray, np.ndarray]:

@@ -1,19 +1,31 @@
 """Built-in robots and URDF facts shared by the controller model and the simulator.
 
-A robot is resolved from the ``robot`` parameter (a built-in name) or from ``urdf_path``
-(any URDF). The same file feeds Pinocchio (controller model) and PyBullet (plant), so the
-two only differ where a user asks them to (friction, payload, mass scale).
+A robot is resolved from the ``robot`` parameter (a built-in name), from ``urdf_path`` (any
+URDF or xacro file) or from ``robot_description`` (URDF text); see
+:mod:`~joint_space_control.model.description` for what is accepted. The same file
+feeds Pinocchio (controller model) and PyBullet (plant), so the two only differ where a
+user asks them to (friction, payload, mass scale).
 """
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+
+from joint_space_control.model.description import (
+    DescriptionError,
+    materialize,
+    parse_urdf,
+    parse_xacro_args,
+    read_description,
+    resolve_meshes,
+)
 
 #: Joint types that carry one actuated degree of freedom.
 ACTUATED_JOINT_TYPES = ("revolute", "continuous", "prismatic")
@@ -21,11 +33,16 @@ ACTUATED_JOINT_TYPES = ("revolute", "continuous", "prismatic")
 
 @dataclass(frozen=True)
 class RobotSpec:
-    """Where a robot's URDF lives and which joints are controlled by default."""
+    """Where a robot's URDF lives and which joints are controlled by default.
+
+    ``urdf_path`` is the file both Pinocchio and PyBullet load (for a description that had
+    to be expanded or resolved, the resolved copy: :mod:`~joint_space_control.model.description`);
+    ``warnings`` are what loading it found worth saying (meshes not found, say)."""
 
     name: str
     urdf_path: Path
     default_joints: tuple[str, ...]
+    warnings: tuple[str, ...] = field(default=(), compare=False)
 
 
 def _pybullet_data(relative: str) -> Path:
@@ -57,22 +74,54 @@ def builtin_robots() -> dict[str, RobotSpec]:
     }
 
 
-def resolve_robot(robot: str = "", urdf_path: str = "") -> RobotSpec:
-    """Resolve a built-in robot name or a URDF path (exactly one of them) to a spec.
+def resolve_robot(
+    robot: str = "",
+    urdf_path: str = "",
+    *,
+    robot_description: str = "",
+    xacro_args: str | Sequence[str] = "",
+    package_paths: Sequence[str] = (),
+) -> RobotSpec:
+    """Resolve a built-in robot name, a URDF/xacro file or URDF text (exactly one) to a spec.
 
-    Raises ``ValueError`` with a reason for an unknown name, a missing file or both given.
+    Raises :class:`~joint_space_control.model.description.DescriptionError` (a
+    ``ValueError``) with a one-line reason: unknown name, missing or malformed file,
+    floating base, no movable joint, more than one source given.
     """
-    if robot and urdf_path:
-        raise ValueError("give either 'robot' or 'urdf_path', not both")
+    given = [n for n, v in (("robot", robot), ("urdf_path", urdf_path)) if v]
+    given += ["robot_description"] if robot_description else []
+    if len(given) > 1:
+        raise DescriptionError(f"give either {' or '.join(map(repr, given))}, not both")
+    if robot_description:
+        return _load(robot_description, "robot_description", None, package_paths)
     if urdf_path:
-        path = Path(urdf_path).expanduser()
-        if not path.is_file():
-            raise ValueError(f"urdf_path '{urdf_path}' is not a file")
-        return RobotSpec(path.stem, path.resolve(), actuated_joints(path))
+        path = Path(urdf_path).expanduser().resolve()
+        text = read_description(path, parse_xacro_args(xacro_args))
+        spec = _load(text, str(path), path, package_paths)
+        return replace(spec, name=path.name.split(".")[0])
     robots = builtin_robots()
     if robot not in robots:
-        raise ValueError(f"unknown robot '{robot}'; built-in robots: {', '.join(robots)}")
+        raise DescriptionError(f"unknown robot '{robot}'; built-in robots: {', '.join(robots)}")
     return robots[robot]
+
+
+def _load(text: str, source: str, path: Path | None, package_paths: Sequence[str]) -> RobotSpec:
+    """Parse and check the text, resolve its meshes, and give the file to load."""
+    robot = parse_urdf(text, source)
+    base_dir = path.parent if path is not None else None
+    resolved, missing, changed = resolve_meshes(text, base_dir, package_paths)
+    warnings = []
+    if missing:
+        unique = sorted(set(missing))
+        shown = ", ".join(unique[:5]) + (f", +{len(unique) - 5} more" if len(unique) > 5 else "")
+        warnings.append(
+            f"{len(unique)} mesh file(s) not found ({shown}); "
+            "their visual/collision shapes are left out (the dynamics do not use them): set "
+            "'package_paths' or ROS_PACKAGE_PATH to the folder holding their package"
+        )
+    if path is None or changed or path.suffix == ".xacro":
+        path = materialize(resolved)
+    return RobotSpec(robot.name or "robot", path, _actuated(robot.joints), tuple(warnings))
 
 
 @dataclass(frozen=True)
@@ -100,67 +149,37 @@ class UrdfFacts:
     inertials: dict[str, UrdfInertial]
 
 
-def _rpy_matrix(rpy: np.ndarray) -> np.ndarray:
-    r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return rz @ ry @ rx
-
-
-def _floats(text: str | None, default: str) -> np.ndarray:
-    return np.array([float(v) for v in (text or default).split()])
-
-
 @lru_cache(maxsize=16)
 def urdf_facts(urdf_path: Path) -> UrdfFacts:
-    """Joints (in file order) and link inertials read straight from the URDF XML."""
-    root = ET.parse(urdf_path).getroot()
+    """Joints (in file order, kinematic joints only) and link inertials of a URDF file, as
+    the URDF parser reads them."""
+    path = Path(urdf_path)
+    robot = parse_urdf(read_description(path), str(path))
     joints = tuple(
-        UrdfJoint(
-            name=j.get("name"),
-            type=j.get("type"),
-            parent=j.find("parent").get("link"),
-            child=j.find("child").get("link"),
-            mimic=j.find("mimic") is not None,
-        )
-        for j in root.iter("joint")
+        UrdfJoint(j.name, j.type, j.parent, j.child, j.mimic is not None) for j in robot.joints
     )
     inertials = {}
-    for link in root.iter("link"):
-        node = link.find("inertial")
+    for link in robot.links:
+        node = link.inertial
         if node is None:
             continue
-        origin = node.find("origin")
-        xyz = _floats(origin.get("xyz") if origin is not None else None, "0 0 0")
-        rpy = _floats(origin.get("rpy") if origin is not None else None, "0 0 0")
-        mass_node, i = node.find("mass"), node.find("inertia")
-        mass = float(mass_node.get("value")) if mass_node is not None else 0.0
-        attrs = i.attrib if i is not None else {}
-
-        def get(key: str, attrs: dict = attrs) -> float:
-            return float(attrs.get(key, 0.0))
-
-        tensor = np.array(
-            [
-                [get("ixx"), get("ixy"), get("ixz")],
-                [get("ixy"), get("iyy"), get("iyz")],
-                [get("ixz"), get("iyz"), get("izz")],
-            ]
-        )
-        rot = _rpy_matrix(rpy)
-        inertials[link.get("name")] = UrdfInertial(mass, xyz, rot @ tensor @ rot.T)
+        origin = np.eye(4) if node.origin is None else np.asarray(node.origin, dtype=float)
+        tensor = np.zeros((3, 3)) if node.inertia is None else np.asarray(node.inertia, float)
+        rot = origin[:3, :3]
+        mass = float(node.mass) if node.mass is not None else 0.0
+        inertials[link.name] = UrdfInertial(mass, origin[:3, 3].copy(), rot @ tensor @ rot.T)
     return UrdfFacts(joints, inertials)
+
+
+def _actuated(joints: Iterable[Any]) -> tuple[str, ...]:
+    return tuple(
+        j.name for j in joints if j.type in ACTUATED_JOINT_TYPES and j.mimic in (None, False)
+    )
 
 
 def actuated_joints(urdf_path: Path) -> tuple[str, ...]:
     """All one-DoF, non-mimic joints of a URDF, in file order."""
-    return tuple(
-        j.name
-        for j in urdf_facts(Path(urdf_path)).joints
-        if j.type in ACTUATED_JOINT_TYPES and not j.mimic
-    )
+    return _actuated(urdf_facts(Path(urdf_path)).joints)
 
 
 def inertia_is_physical(inertia: np.ndarray, tol: float = 1e-12) -> bool:

@@ -142,7 +142,7 @@ class JointController(Node):
         params.declare(self, self._specs)
         values = params.current_values(self, self._specs)
         self._perturbation = model_perturbation(values)
-        self.model = params.robot_model(values, self._perturbation)
+        self.model = params.robot_model(values, self._perturbation, self)
         spec = self.model.spec
         self.joints = self.model.joint_names
         self.n = len(self.joints)
@@ -257,10 +257,7 @@ class JointController(Node):
 
     def _model_for(self, values: dict[str, Any]) -> RobotModel:
         """The current model, or a new one if the model parameters changed."""
-        perturbation = model_perturbation(values)
-        if perturbation == self._perturbation:
-            return self.model
-        return RobotModel(self.model.spec, self.joints, perturbation)
+        return self.model.with_perturbation(model_perturbation(values))
 
     def _publish_config(self, values: dict[str, Any]) -> None:
         lower, upper = self.model.position_limits

@@ -104,13 +104,41 @@ def nonnegative_number(values: Mapping[str, Any], name: str) -> float:
     return float(value)
 
 
-#: What every node takes to know its robot (INTERFACES.md): a built-in robot or any URDF, and
-#: the joints in the node's order.
+#: ``robot:=topic`` reads the description from the latched ``robot_description`` topic.
+ROBOT_FROM_TOPIC = "topic"
+
+#: What every node takes to know its robot (INTERFACES.md): URDF text, a URDF/xacro file or a
+#: built-in robot (in that order of precedence), and the joints in the node's order.
 ROBOT_PARAMETERS = (
     ParamSpec(
-        "robot", "planar_2dof", "Built-in robot: planar_2dof | iiwa | panda", read_only=True
+        "robot",
+        "planar_2dof",
+        "Built-in robot: planar_2dof | iiwa | panda; 'topic': the description published on "
+        "the latched robot_description topic (robot_state_publisher)",
+        read_only=True,
     ),
-    ParamSpec("urdf_path", "", "Any URDF file (instead of 'robot')", read_only=True),
+    ParamSpec("urdf_path", "", "A .urdf or .xacro file (wins over 'robot')", read_only=True),
+    ParamSpec(
+        "robot_description",
+        "",
+        "The URDF text itself, as robot_state_publisher takes it (wins over 'urdf_path')",
+        read_only=True,
+    ),
+    ParamSpec("xacro_args", "", "xacro arguments 'name:=value name2:=value2'", read_only=True),
+    ParamSpec(
+        "package_paths",
+        [],
+        "Extra folders for package:// URIs (a package folder or a folder of packages), "
+        "searched after the ament index and ROS_PACKAGE_PATH",
+        read_only=True,
+        dynamic=True,
+    ),
+    ParamSpec(
+        "description_timeout",
+        10.0,
+        "robot:=topic: how long to wait for the robot_description topic [s], > 0",
+        read_only=True,
+    ),
     ParamSpec(
         "joints",
         [],
@@ -118,11 +146,72 @@ ROBOT_PARAMETERS = (
         read_only=True,
         dynamic=True,
     ),
+    ParamSpec(
+        "effort_limits",
+        [],
+        "Effort limits [N·m or N], one value or one per joint, > 0; overrides the URDF "
+        "(needed where it says 0 or nothing); empty: the URDF's",
+        read_only=True,
+        dynamic=True,
+    ),
 )
 
 
-def robot_model(values: Mapping[str, Any], perturbation: Any = None) -> RobotModel:
-    """The model of the robot named by ``robot``/``urdf_path``, for the ``joints`` given."""
+def robot_model(
+    values: Mapping[str, Any], perturbation: Any = None, node: Node | None = None
+) -> RobotModel:
+    """The model of the robot the parameters name, for the ``joints`` given, with its
+    warnings logged by ``node`` (which also reads the ``robot_description`` topic for
+    ``robot:=topic``)."""
+    text = values["robot_description"]
     urdf = values["urdf_path"]
-    spec = resolve_robot(values["robot"] if not urdf else "", urdf)
-    return RobotModel(spec, names(values, "joints") or None, perturbation)
+    robot = values["robot"] if not (text or urdf) else ""
+    if robot == ROBOT_FROM_TOPIC:
+        if node is None:
+            raise ValueError("robot:=topic needs a node to read the robot_description topic")
+        text, robot = description_from_topic(node, positive(values, "description_timeout")), ""
+    if not isinstance(values["xacro_args"], str):
+        raise ValueError(f"'xacro_args' must be a string, got {values['xacro_args']!r}")
+    spec = resolve_robot(
+        robot,
+        urdf if not text else "",
+        robot_description=text,
+        xacro_args=values["xacro_args"],
+        package_paths=names(values, "package_paths"),
+    )
+    limits = values["effort_limits"]
+    model = RobotModel(
+        spec,
+        names(values, "joints") or None,
+        perturbation,
+        effort_limits=numbers(values, "effort_limits") if np.size(limits) else None,
+    )
+    if node is not None:
+        for warning in (*spec.warnings, *model.warnings):
+            node.get_logger().warning(warning)
+    return model
+
+
+def description_from_topic(node: Node, timeout: float) -> str:
+    """The URDF text on the latched ``robot_description`` topic (std_msgs/String, transient
+    local, as robot_state_publisher publishes it)."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.wait_for_message import wait_for_message
+    from std_msgs.msg import String
+
+    qos = QoSProfile(
+        depth=1,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        reliability=ReliabilityPolicy.RELIABLE,
+    )
+    topic = node.resolve_topic_name("robot_description")
+    node.get_logger().info(f"robot:=topic: waiting up to {timeout:g} s for {topic}")
+    ok, msg = wait_for_message(
+        String, node, "robot_description", qos_profile=qos, time_to_wait=timeout
+    )
+    if not ok or not msg.data:
+        raise ValueError(
+            f"no robot description on {topic} within {timeout:g} s (robot:=topic): start "
+            "robot_state_publisher, or give 'robot_description', 'urdf_path' or 'robot'"
+        )
+    return msg.data

@@ -299,7 +299,7 @@ class TrajectoryGenerator(Node):
         super().__init__("trajectory_generator", **kwargs)
         params.declare(self, PARAMETERS)
         values = params.current_values(self, PARAMETERS)
-        model = params.robot_model(values)
+        model = params.robot_model(values, node=self)
         self.joints = model.joint_names
         self.n = len(self.joints)
         self._lower, self._upper = model.position_limits
