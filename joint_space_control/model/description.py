@@ -76,8 +76,10 @@ def parse_urdf(text: str, source: str):
     """The description parsed by yourdfpy (``yourdfpy.Robot``); DescriptionError if it is not
     a URDF, has a floating base or no movable joint."""
     import yourdfpy
+    from lxml import etree
 
-    try:
+    try:  # strict first: the URDF parser's own XML parser recovers from broken text
+        etree.fromstring(text.encode("utf-8"))
         robot = yourdfpy.URDF.load(
             io.BytesIO(text.encode("utf-8")),
             build_scene_graph=False,

@@ -1,0 +1,211 @@
+"""Robot descriptions as robot packages ship them (tests/corpus.py): each loads, its plant is
+its model, and what cannot work is refused in one line.
+
+Identity: PyBullet's inverse dynamics (``calculateInverseDynamics`` on the loaded plant)
+equals Pinocchio's rnea on the controller model, on random states inside the joint limits,
+to the per-robot tolerance of tests/corpus.py (rounding, ~1e-11 N·m, where the description
+is physical).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet as pb
+import pytest
+
+from joint_space_control.model.description import DescriptionError
+from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.model.robots import resolve_robot, urdf_facts
+from sim_bridge.plant import Plant
+from tests.corpus import CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS, floating_g1
+
+TWO_LINK = """<?xml version="1.0"?>
+<robot name="two_link">
+  <link name="base"/>
+  <joint name="j1" type="revolute">
+    <parent link="base"/><child link="l1"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="{effort}" velocity="5"/>
+  </joint>
+  <link name="l1">
+    <inertial><origin xyz="0.25 0 0"/><mass value="2.0"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.05" iyz="0" izz="0.05"/></inertial>
+    <visual><geometry><mesh filename="{mesh}"/></geometry></visual>
+  </link>
+  <transmission name="t1">
+    <type>transmission_interface/SimpleTransmission</type>
+    <joint name="j1">
+      <hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface>
+    </joint>
+    <actuator name="m1"><mechanicalReduction>1</mechanicalReduction></actuator>
+  </transmission>
+  <ros2_control name="sys" type="system">
+    <joint name="j1"><command_interface name="effort"/></joint>
+  </ros2_control>
+  <gazebo reference="l1"><material>Gazebo/Grey</material></gazebo>
+</robot>
+"""
+
+
+def pybullet_inverse_dynamics(plant: Plant, q, dq, ddq) -> np.ndarray:
+    """τ = ID(q, q̇, q̈) of the plant's multibody, for the controlled joints (locked joints at
+    their positions, at rest)."""
+    body, c = plant.body, plant.client
+    movable = [
+        j
+        for j in range(pb.getNumJoints(body, c))
+        if pb.getJointInfo(body, j, c)[2] != pb.JOINT_FIXED
+    ]
+    plant.reset(q)
+    qa = [pb.getJointState(body, j, c)[0] for j in movable]
+    va, aa = [0.0] * len(movable), [0.0] * len(movable)
+    for k, j in enumerate(plant._idx):
+        va[movable.index(j)], aa[movable.index(j)] = dq[k], ddq[k]
+    tau = np.array(pb.calculateInverseDynamics(body, qa, va, aa, physicsClientId=c))
+    return tau[[movable.index(j) for j in plant._idx]]
+
+
+@pytest.mark.parametrize("robot", CORPUS, ids=lambda r: r.name)
+def test_corpus_robot_loads_and_pybullet_inverse_dynamics_is_pinocchio_rnea(robot):
+    spec = resolve_robot(urdf_path=str(robot.path), package_paths=PACKAGE_PATHS)
+    facts = urdf_facts(spec.urdf_path)
+    # transmission joints are not kinematic joints: every default joint is a real one
+    kinematic = {j.name for j in facts.joints}
+    assert spec.default_joints and set(spec.default_joints) <= kinematic
+    model = RobotModel(spec)
+    plant = Plant(
+        spec,
+        model.joint_names,
+        locked_positions=model.locked_positions,
+        effort_limits=model.effort_limits,
+    )
+    try:
+        np.testing.assert_array_equal(plant.effort_limits, model.effort_limits)
+        rng = np.random.default_rng(7)
+        lo, hi = model.position_limits
+        lo, hi = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
+        worst, scale = 0.0, 0.0
+        for _ in range(6):
+            q = rng.uniform(lo, hi)
+            dq, ddq = rng.uniform(-1.0, 1.0, (2, model.n))
+            expected = model.rnea(q, dq, ddq)
+            worst = max(
+                worst,
+                float(np.max(np.abs(pybullet_inverse_dynamics(plant, q, dq, ddq) - expected))),
+            )
+            scale = max(scale, float(np.max(np.abs(expected))))
+        assert worst <= robot.id_tolerance, (robot.name, worst, robot.why)
+        assert scale > 1e3 * min(robot.id_tolerance, 1e-9)  # not vacuous: real torques
+        if robot.why:  # the tolerance is wide for a reason that is visible to the user
+            assert worst > 1e-9 and plant.warnings, robot.name
+    finally:
+        plant.close()
+
+
+def test_meshes_are_resolved_through_package_paths_or_named_in_a_warning():
+    robot = CORPUS[1]  # ur5: package://example-robot-data/... meshes
+    found = resolve_robot(urdf_path=str(robot.path), package_paths=PACKAGE_PATHS)
+    assert found.warnings == ()
+    text = found.urdf_path.read_text()
+    assert "package://" not in text and "/ur_description/meshes/" in text
+    lost = resolve_robot(urdf_path=str(robot.path), package_paths=[])
+    assert len(lost.warnings) == 1 and "mesh file(s) not found" in lost.warnings[0]
+    assert "package://example-robot-data/robots/ur_description/meshes" in lost.warnings[0]
+    # the dynamics do not depend on the meshes
+    q = np.linspace(-1.0, 1.0, 6)
+    np.testing.assert_array_equal(RobotModel(found).gravity(q), RobotModel(lost).gravity(q))
+
+
+def test_non_kinematic_blocks_and_robot_description_text(tmp_path):
+    mesh = tmp_path / "link.stl"
+    mesh.write_text("solid x\nendsolid x\n")
+    text = TWO_LINK.format(effort="20", mesh="file://" + str(mesh))
+    spec = resolve_robot(robot_description=text)
+    assert spec.name == "two_link" and spec.default_joints == ("j1",)
+    assert spec.warnings == ()
+    model = RobotModel(spec)
+    # g(0) of a 2 kg link with its COM 0.25 m along x, axis y: −m g0 r
+    np.testing.assert_allclose(model.gravity(np.zeros(1)), [-2.0 * 9.81 * 0.25], rtol=1e-12)
+    np.testing.assert_array_equal(model.effort_limits, [20.0])
+
+
+def test_zero_effort_limits_warn_and_the_override_is_shared(tmp_path):
+    spec = resolve_robot(urdf_path=str(DOUBLE_PENDULUM), package_paths=PACKAGE_PATHS)
+    model = RobotModel(spec)
+    assert np.all(np.isinf(model.effort_limits))
+    assert len(model.warnings) == 1 and "no effort limit" in model.warnings[0]
+    assert "['joint1', 'joint2']" in model.warnings[0]
+    limited = RobotModel(spec, effort_limits=[3.0, 2.0])
+    np.testing.assert_array_equal(limited.effort_limits, [3.0, 2.0])
+    assert limited.warnings == []
+    assert limited.with_perturbation(limited.perturbation) is limited
+    plant = Plant(spec, limited.joint_names, effort_limits=limited.effort_limits)
+    try:
+        plant.step(np.array([50.0, -50.0]))
+        np.testing.assert_array_equal(plant.state().effort, [3.0, -2.0])
+    finally:
+        plant.close()
+    for bad in ([0.0, 1.0], [1.0, float("nan")], [1.0, 2.0, 3.0]):
+        with pytest.raises(ValueError, match="effort_limits"):
+            RobotModel(spec, effort_limits=bad)
+
+
+def test_xacro_files_are_expanded_with_their_arguments(tmp_path):
+    xacro_file = tmp_path / "arm.urdf.xacro"
+    xacro_file.write_text(
+        """<?xml version="1.0"?>
+<robot name="xarm" xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:arg name="mass" default="1.0"/>
+  <link name="base"/>
+  <joint name="j1" type="revolute">
+    <parent link="base"/><child link="l1"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="5"/>
+  </joint>
+  <link name="l1">
+    <inertial><origin xyz="0.5 0 0"/><mass value="$(arg mass)"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+  </link>
+</robot>
+"""
+    )
+    light = RobotModel(resolve_robot(urdf_path=str(xacro_file)))
+    heavy = RobotModel(resolve_robot(urdf_path=str(xacro_file), xacro_args="mass:=3.0"))
+    assert light.spec.name == "arm"
+    np.testing.assert_allclose(heavy.gravity(np.zeros(1)), 3.0 * light.gravity(np.zeros(1)))
+    with pytest.raises(DescriptionError, match="name:=value"):
+        resolve_robot(urdf_path=str(xacro_file), xacro_args="mass=3")
+
+
+@pytest.mark.parametrize(
+    ("kind", "match"),
+    [
+        ("malformed", "malformed robot description"),
+        ("missing", "is not a file"),
+        ("floating", "floating base"),
+        ("no_joints", "no movable joint"),
+        ("bad_xacro", "xacro failed"),
+    ],
+)
+def test_unusable_descriptions_are_one_line_errors(tmp_path, kind, match):
+    paths = {
+        "malformed": tmp_path / "bad.urdf",
+        "missing": tmp_path / "nope.urdf",
+        "floating": tmp_path / "g1_floating.urdf",
+        "no_joints": tmp_path / "rigid.urdf",
+        "bad_xacro": tmp_path / "bad.xacro",
+    }
+    paths["floating"].write_text(floating_g1())
+    paths["malformed"].write_text('<robot name="x"><link name="a"><joint name=')
+    paths["no_joints"].write_text('<robot name="rigid"><link name="a"/></robot>')
+    paths["bad_xacro"].write_text(
+        '<robot xmlns:xacro="http://www.ros.org/wiki/xacro" name="x">'
+        "<xacro:undefined_macro/></robot>"
+    )
+    with pytest.raises(DescriptionError, match=match) as info:
+        resolve_robot(urdf_path=str(paths[kind]), package_paths=PACKAGE_PATHS)
+    assert "\n" not in str(info.value)
+    assert isinstance(info.value, ValueError)  # the nodes turn it into exit code 2
+
+
+def test_one_source_at_a_time():
+    with pytest.raises(DescriptionError, match="not both"):
+        resolve_robot("iiwa", robot_description="<robot/>")
