@@ -255,9 +255,7 @@ class SimBridge(Node):
         q0 = per_joint(params.numbers(values, "initial_positions"), self.n, "initial_positions")
         if not np.all(np.isfinite(q0)):
             raise ValueError(f"'initial_positions' must be finite, got {q0.tolist()}")
-        lower, upper = model.position_limits
-        clipped = np.clip(q0, lower, upper)
-        outside = [name for name, a, b in zip(self.joints, q0, clipped, strict=True) if a != b]
+        clipped, outside = model.clip_into_limits(q0)
         if outside:
             self.get_logger().warning(
                 f"initial positions of {outside} are outside their joint limits: clipped "

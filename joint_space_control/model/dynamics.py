@@ -134,6 +134,14 @@ class RobotModel:
                 hi.append(self.model.upperPositionLimit[iq])
         return np.array(lo), np.array(hi)
 
+    def clip_into_limits(self, q: Sequence[float]) -> tuple[np.ndarray, list[str]]:
+        """q clipped into the position limits, and the joints that had to be clipped."""
+        q = np.asarray(q, dtype=float)
+        lower, upper = self.position_limits
+        clipped = np.clip(q, lower, upper)
+        outside = [name for name, a, b in zip(self.joint_names, q, clipped, strict=True) if a != b]
+        return clipped, outside
+
     # -- dynamics --------------------------------------------------------------------
     def configuration(self, q: np.ndarray) -> np.ndarray:
         """Pinocchio configuration vector for joint coordinates q (cos/sin for continuous)."""

@@ -17,7 +17,7 @@ from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot, urdf_facts
 from sim_bridge.plant import Plant
-from tests.corpus import CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS, floating_g1
+from tests.corpus import BY_NAME, CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS, floating_g1
 
 TWO_LINK = """<?xml version="1.0"?>
 <robot name="two_link">
@@ -147,6 +147,18 @@ def test_zero_effort_limits_warn_and_the_override_is_shared(tmp_path):
     for bad in ([0.0, 1.0], [1.0, float("nan")], [1.0, 2.0, 3.0]):
         with pytest.raises(ValueError, match="effort_limits"):
             RobotModel(spec, effort_limits=bad)
+
+
+def test_initial_positions_outside_the_limits_are_clipped_into_them():
+    """The registry's Panda joint 4 has limits [−3.07, −0.07]: the zero configuration is
+    outside them."""
+    panda = BY_NAME["panda"]
+    model = RobotModel(resolve_robot(urdf_path=str(panda.path), package_paths=PACKAGE_PATHS))
+    clipped, outside = model.clip_into_limits(np.zeros(model.n))
+    assert outside == ["panda_joint4"]
+    lower, upper = model.position_limits
+    assert clipped[3] == upper[3] < 0
+    np.testing.assert_array_equal(np.delete(clipped, 3), 0.0)
 
 
 def test_xacro_files_are_expanded_with_their_arguments(tmp_path):
