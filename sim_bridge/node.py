@@ -13,7 +13,8 @@ name) or ``~/commands`` (Float64MultiArray in joint order). Two modes:
   again (late subscribers), with the same stamp. A state left unanswered for more than
   STALL_WARNING seconds (wall time) while a controller is connected (a publisher on
   ``effort_command`` or a subscriber of ``joint_states``) is reported at WARN, with its
-  likely cause, once per episode and then every STALL_REPEAT seconds while it lasts.
+  likely cause, once per episode (and at once when other commanders connect) and then every
+  STALL_REPEAT seconds while it lasts.
 
 Safe fallback: in realtime mode, when no valid command arrived for ``command_timeout``
 (simulation time), and before the first command, the brakes are engaged (velocity servos
@@ -189,6 +190,7 @@ class SimBridge(Node):
         self._sent_wall = 0.0
         self._awaiting_since = 0.0  # when the awaited state was first published (monotonic)
         self._stall_warned = 0.0  # when the stall was last reported (monotonic; 0: not yet)
+        self._stall_nodes: tuple[str, ...] = ()  # the commanders named then
         self._paused = bool(v["start_paused"])
         self._pause_at_ns = self._pause_time(v)
         self._braking = True
@@ -327,16 +329,20 @@ class SimBridge(Node):
         if not waiting or now - since < STALL_WARNING:
             self._stall_warned = 0.0
             return
-        if self._stall_warned and now - self._stall_warned < STALL_REPEAT:
-            return
         commanders = self.get_publishers_info_by_topic(self.resolve_topic_name("effort_command"))
         listeners = self.get_subscriptions_info_by_topic(self.resolve_topic_name("joint_states"))
         if not commanders and not listeners:
             return
-        self._stall_warned = now
+        names = tuple(
+            sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in commanders})
+        )
+        # again after STALL_REPEAT, or at once when other commanders are connected
+        if self._stall_warned and names == self._stall_nodes:
+            if now - self._stall_warned < STALL_REPEAT:
+                return
+        self._stall_warned, self._stall_nodes = now, names
         waited = f"the state at t={t_ns * 1e-9:.3f} s is unanswered for {now - since:.1f} s"
         if commanders:
-            names = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in commanders})
             self.get_logger().warning(
                 f"lockstep: {waited} while {', '.join(names)} publish(es) effort_command: "
                 "likely a controller with trigger: timer and use_sim_time:=true, which waits "
