@@ -10,7 +10,11 @@ name) or ``~/commands`` (Float64MultiArray in joint order). Two modes:
   ``header.stamp`` is t (a ``~/commands`` message answers whatever state is pending), then
   steps to t + 1/publish_rate and publishes again. Nothing depends on the wall clock, so the
   same inputs give the same run. A state left unanswered for ``republish_period`` is sent
-  again (late subscribers), with the same stamp.
+  again (late subscribers), with the same stamp. A state left unanswered for more than
+  STALL_WARNING seconds (wall time) while a controller is connected (a publisher on
+  ``effort_command`` or a subscriber of ``joint_states``) is reported at WARN, with its
+  likely cause, once per episode (and at once when other commanders connect) and then every
+  STALL_REPEAT seconds while it lasts.
 
 Safe fallback: in realtime mode, when no valid command arrived for ``command_timeout``
 (simulation time), and before the first command, the brakes are engaged (velocity servos
@@ -39,6 +43,8 @@ from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -70,6 +76,11 @@ COUNTERS = ("rejected.commands", "brake.engaged")
 SENT_HISTORY = 64
 #: Realtime: a tick this far behind its schedule [ns] resets the schedule (machine stalled).
 MAX_BEHIND_NS = 100_000_000
+#: Lockstep: warn when a state stays unanswered this long [s, wall] with a controller around
+#: (checked every quarter of it: the warning comes within a second).
+STALL_WARNING = 0.75
+#: ... and again every this long [s] while it stays unanswered.
+STALL_REPEAT = 10.0
 
 PARAMETERS = params.ROBOT_PARAMETERS + (
     params.ParamSpec("mode", "realtime", "realtime | lockstep", read_only=True),
@@ -176,6 +187,9 @@ class SimBridge(Node):
         self._tau_t_ns = 0
         self._awaiting: int | None = None  # lockstep: stamp of the state waiting for answer
         self._sent_wall = 0.0
+        self._awaiting_since = 0.0  # when the awaited state was first published (monotonic)
+        self._stall_warned = 0.0  # when the stall was last reported (monotonic; 0: not yet)
+        self._stall_nodes: tuple[str, ...] = ()  # the commanders named then
         self._paused = bool(v["start_paused"])
         self._pause_at_ns = self._pause_time(v)
         self._braking = True
@@ -212,6 +226,11 @@ class SimBridge(Node):
 
         if self.mode == "lockstep":
             self.create_timer(republish / 4, lambda: self._republish(republish))
+            self.create_timer(
+                STALL_WARNING / 4,
+                self._check_stall,
+                clock=RosClock(clock_type=ClockType.STEADY_TIME),
+            )
             if not self._paused:
                 self._publish_state()
         else:
@@ -294,8 +313,10 @@ class SimBridge(Node):
             clock.sec, clock.nanosec = divmod(self._t_ns, 1_000_000_000)
             self._clock_pub.publish(self._clock_msg)
         if self.mode == "lockstep":
-            self._awaiting = self._t_ns
             self._sent_wall = time.monotonic()
+            if self._awaiting != self._t_ns:  # a new state (not sent again)
+                self._awaiting_since = self._sent_wall
+            self._awaiting = self._t_ns
         slot = (self._t_ns // self.period_ns) % SENT_HISTORY
         self._sent_stamp[slot] = self._t_ns
         self._sent_at[slot] = time.perf_counter_ns()
@@ -311,6 +332,44 @@ class SimBridge(Node):
             if self._awaiting is not None and not self._paused:
                 if time.monotonic() - self._sent_wall > after:
                     self._publish_state()
+
+    def _check_stall(self) -> None:
+        """Lockstep: report a state that stays unanswered while a controller is connected."""
+        with self._lock:
+            waiting = self._awaiting is not None and not self._paused
+            since, t_ns = self._awaiting_since, self._t_ns
+        now = time.monotonic()
+        if not waiting or now - since < STALL_WARNING:
+            self._stall_warned = 0.0
+            return
+        commanders = self.get_publishers_info_by_topic(self.resolve_topic_name("effort_command"))
+        listeners = self.get_subscriptions_info_by_topic(self.resolve_topic_name("joint_states"))
+        if not commanders and not listeners:
+            return
+        names = tuple(
+            sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in commanders})
+        )
+        # again after STALL_REPEAT, or at once when other commanders are connected
+        if self._stall_warned and names == self._stall_nodes:
+            if now - self._stall_warned < STALL_REPEAT:
+                return
+        self._stall_warned, self._stall_nodes = now, names
+        waited = f"the state at t={t_ns * 1e-9:.3f} s is unanswered for {now - since:.1f} s"
+        if commanders:
+            self.get_logger().warning(
+                f"lockstep: {waited} while {', '.join(names)} publish(es) effort_command: "
+                "likely a controller with trigger: timer and use_sim_time:=true, which waits "
+                "for /clock, which a lockstep plant advances only on commands (use "
+                "trigger:=state or auto), or one that stamps its commands with another time "
+                "than the state's (header.stamp must be the state's stamp)"
+            )
+        else:
+            names = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in listeners})
+            self.get_logger().warning(
+                f"lockstep: {waited}; {', '.join(names)} subscribe(s) joint_states but nobody "
+                "publishes effort_command (a controller that failed to start, or one "
+                "remapped to another command topic?)"
+            )
 
     def _latency(self, stamp_ns: int, received: int) -> int:
         """From publishing the state stamped ``stamp_ns`` to ``received`` [ns]; -1 when that

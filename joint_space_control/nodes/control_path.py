@@ -19,6 +19,9 @@ those rare events.
 The control-path entities belong to :class:`ControlPathGroup`, which the rclpy executors
 never execute.
 
+Another thread hands work to the control path with :meth:`ControlPath.post` (a function
+run in the control-path thread at its next wake-up, which the post causes).
+
 A callback receives ``(message, info)``: ``info`` is the rmw message info (``source_timestamp``,
 ``received_timestamp`` [ns, system clock]) for subscriptions and None for the timer.
 """
@@ -28,6 +31,7 @@ from __future__ import annotations
 import gc
 import sys
 import threading
+from collections import deque
 from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -92,6 +96,7 @@ class ControlPath:
         self._subscriptions: list[_Entry] = []
         self._timer: tuple[Timer, Callable[[], None]] | None = None
         self._version = 0  # bumped on every change of the entities
+        self._posted: deque[Callable[[], None]] = deque()  # run by the serving thread
         self._stop = False
         self._wake = GuardCondition(None, None, context=node.context)
         self._sigint: SignalHandlerGuardCondition | None = None
@@ -149,6 +154,13 @@ class ControlPath:
         self._timer = (timer, callback)
         self._changed()
         return timer
+
+    def post(self, callback: Callable[[], None]) -> None:
+        """Run ``callback()`` in the thread that serves the control path, at its next wake-up
+        (caused by this call); for another thread (the executor's) to hand over work that
+        must not race with the control-path callbacks."""
+        self._posted.append(callback)
+        self._wake.trigger()
 
     def _changed(self) -> None:
         self._version += 1
@@ -263,6 +275,9 @@ class ControlPath:
                 if timer[0].is_timer_ready():
                     timer[0].call_timer()
                     timer[1]()
+            posted = self._posted
+            while posted:
+                posted.popleft()()
             if mode.once:
                 return True, count
             woken = ready("guard_condition", 0) or ready("guard_condition", 1)

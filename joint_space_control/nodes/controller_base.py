@@ -13,10 +13,34 @@ The control path (references, joint states and the control timer) runs in its ow
 loop (:mod:`~joint_space_control.nodes.control_path`) and publishes serialized images
 (:mod:`~joint_space_control.nodes.wire`); parameters and services are served by a standard
 executor in a second thread. A lock makes parameter updates land between two ticks.
+
+Trigger (``trigger``): ``state`` answers every joint state once (a lockstep plant waits for
+that answer); ``timer`` commands at ``rate`` on the node clock from the newest state;
+``auto`` (the default) follows the plant: the node reads the ``mode`` parameter of the
+publishers of its ``joint_states`` topic through their parameter services
+(:mod:`~joint_space_control.nodes.plant_mode`, asynchronously in the executor thread):
+``lockstep`` → ``state``, anything else or no answer within 2 s → ``timer``. Until that is
+known the node sends nothing (a realtime plant holds its brakes meanwhile) and keeps the
+references it receives; once the plant is known to be lockstep, the newest waiting state
+is answered at once. The resolved trigger is logged and shown in ``~/config`` and on
+/diagnostics (``trigger``; ``pending`` while unknown).
+
+Stale states: with the timer, the node stops commanding when no joint state *arrived* for
+``state_timeout`` seconds, measured on its own steady clock at receipt (not by comparing
+the states' stamps, simulation time, with the node clock), and restarts from the measured
+configuration when they come back.
+
+Gains (:func:`~joint_space_control.laws.gains.choose_gains`): ``omega_n`` > 0 designs them
+from ω_n, ζ; else ``kp`` > 0 (with ``kd``) gives them; else the default ω_n (10 rad/s) with
+``zeta``. A concrete controller may design its gains at the configuration measured at start
+(``GAINS_NEED_CONFIGURATION``): they are then designed at the first state, again after a
+restart, and at that configuration when ω_n, ζ or the model change; ``~/config`` is
+published again with the gains in force.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from typing import Any
@@ -29,6 +53,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
+from joint_space_control.laws.gains import DEFAULT_OMEGA_N, DEFAULT_ZETA, GainChoice, choose_gains
 from joint_space_control.laws.split import TorqueSplit
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.nodes import parameters as params
@@ -47,10 +72,11 @@ from joint_space_control.nodes.messages import (
     state_message,
     trajectory_from_msg,
 )
+from joint_space_control.nodes.plant_mode import PlantModeWatcher
 from joint_space_control.nodes.wire import Float64ArrayImage, JointStateImage, JointStateReader
 from joint_space_control.trajectories.reference import Reference, Sample, Trajectory
 
-TRIGGERS = ("timer", "state")
+TRIGGERS = ("auto", "timer", "state")
 #: The safety counters of a controller (on /diagnostics; README "Safety").
 COUNTERS = (
     "rejected.joint_states",
@@ -67,26 +93,42 @@ COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
     params.ParamSpec("rate", 1000.0, "Control rate [Hz] with trigger=timer, > 0", read_only=True),
     params.ParamSpec(
         "trigger",
-        "timer",
-        "timer: command at 'rate' from the latest state; state: answer every "
-        "joint state once (lockstep)",
+        "auto",
+        "auto: follow the plant (the 'mode' parameter of the joint_states publisher: "
+        "lockstep -> state, anything else -> timer); timer: command at 'rate' from the "
+        "latest state; state: answer every joint state once (lockstep)",
         read_only=True,
     ),
     params.ParamSpec(
         "state_timeout",
         0.1,
-        "Stop commanding when the newest joint state is older than this [s], > 0",
+        "Stop commanding when no joint state arrived for this long [s] (wall time at "
+        "receipt), > 0",
     ),
     params.ParamSpec(
         "kp",
-        100.0,
-        "Proportional gain K_P [N·m/rad], one value or one per joint, > 0",
+        0.0,
+        "Proportional gain K_P, one value or one per joint, > 0; 0: not given (see omega_n)",
         dynamic=True,
     ),
     params.ParamSpec(
         "kd",
-        20.0,
-        "Derivative gain K_D [N·m·s/rad], one value or one per joint, >= 0",
+        0.0,
+        "Derivative gain K_D, one value or one per joint, >= 0; only with kp > 0",
+        dynamic=True,
+    ),
+    params.ParamSpec(
+        "omega_n",
+        0.0,
+        "Natural frequency ω_n [rad/s], one value or one per joint, > 0: gains from "
+        "omega_n/zeta (over kp/kd); 0: not given (kp/kd if kp > 0, else "
+        f"ω_n = {DEFAULT_OMEGA_N:g} rad/s)",
+        dynamic=True,
+    ),
+    params.ParamSpec(
+        "zeta",
+        DEFAULT_ZETA,
+        "Damping ratio ζ, one value or one per joint, >= 0 (with omega_n or the default)",
         dynamic=True,
     ),
     # The controller's own model (B̂, Ĉ, F̂, ĝ) can differ from the plant on purpose.
@@ -135,6 +177,8 @@ class JointController(Node):
     LAW_PARAMETERS: tuple[params.ParamSpec, ...] = ()
     #: The executable (and default node name) of the concrete controller.
     EXECUTABLE = ""
+    #: True when gains designed from ω_n, ζ depend on the configuration (:meth:`design_gains`).
+    GAINS_NEED_CONFIGURATION = False
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
@@ -150,8 +194,13 @@ class JointController(Node):
         self._lowest_effort = -self.effort_limits
         self._robot_name = spec.name
         self._rate = rate = params.positive(values, "rate")
-        self.trigger = params.choice(values, "trigger", TRIGGERS)
+        self.trigger_parameter = params.choice(values, "trigger", TRIGGERS)
+        # the trigger in force: "timer" | "state" | "pending" (auto, plant mode not known)
+        self.trigger = "pending" if self.trigger_parameter == "auto" else self.trigger_parameter
+        self._trigger_reason = ""
+        self._q0: np.ndarray | None = None  # configuration measured at (re)start
         self.config = self.build_config(values, self.model)
+        self._values = values  # the parameter values in force
         self._state_timeout = params.positive(values, "state_timeout")
         self._lock = threading.Lock()  # parameter updates wait for the end of a tick
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -164,6 +213,8 @@ class JointController(Node):
         self._dq: np.ndarray | None = None
         self._state_ns = -1
         self._state_sent_ns = -1  # when the newest state was published (system clock)
+        self._state_arrival = 0.0  # when it arrived (time.monotonic) [s]
+        self._deferred: list[JointTrajectory] = []  # references received while pending
         self._answered_ns = -1
         self._t_last: float | None = None
         self._reference: Reference | None = None
@@ -177,6 +228,7 @@ class JointController(Node):
         # Safety counters, on /diagnostics (README "Safety").
         self.counts = dict.fromkeys(COUNTERS, 0)
         self._nominal_ns = round(1e9 / rate) if self.trigger == "timer" else -1
+        self._timer = None
         self.loop_stats = LoopStatistics()
 
         self._pub = self.create_publisher(JointState, "effort_command", CONTROL_PUBLISHER_QOS)
@@ -194,15 +246,42 @@ class JointController(Node):
         self.control_path.subscription(
             JointState, "joint_states", self._on_joint_state, CONTROL_QOS, raw=True
         )
-        if self.trigger == "timer":
-            self.control_path.timer(1.0 / rate, self._on_timer)
+        if self.trigger_parameter != "state":
+            self._timer = self.control_path.timer(1.0 / rate, self._on_timer)
         self._diagnostics = LoopDiagnostics(
             self, self.loop_stats, spec.name, self._diagnostic_values, self._alarm
         )
+        self._watcher = None
+        if self.trigger_parameter == "auto":
+            self._watcher = PlantModeWatcher(self, "joint_states", self._on_plant_mode)
         self.get_logger().info(
-            f"{node_name}: {spec.name}, joints {list(self.joints)}, trigger={self.trigger}"
-            + (f" at {rate:g} Hz" if self.trigger == "timer" else "")
+            f"{node_name}: {spec.name}, joints {list(self.joints)}, "
+            + self._trigger_text()
+            + f", gains {self._gains_text()}"
         )
+
+    def _trigger_text(self) -> str:
+        if self.trigger == "pending":
+            return "trigger=auto: pending (reading the joint_states publisher's 'mode')"
+        text = f"trigger={self.trigger}" + (
+            f" at {self._rate:g} Hz" if self.trigger == "timer" else ""
+        )
+        if self.trigger_parameter == "auto":
+            text += f" (auto: {self._trigger_reason})"
+        return text
+
+    def _gains_text(self) -> str:
+        choice: GainChoice = self.config.choice
+        gains = self.config.gains
+        if choice.designed:
+            text = f"from omega_n={choice.omega_n.tolist()}, zeta={choice.zeta.tolist()}" + (
+                " (default omega_n)" if choice.source == "default" else ""
+            )
+        else:
+            text = "from kp, kd"
+        if gains is None:
+            return text + ", designed at the first measured configuration"
+        return text + f": kp={gains.kp.tolist()}, kd={gains.kd.tolist()}"
 
     # -- to be provided by the concrete controller ------------------------------------
     def build_config(self, values: dict[str, Any], model: RobotModel) -> Any:
@@ -225,6 +304,28 @@ class JointController(Node):
     def reset_state(self) -> None:
         """Forget internal state (integrators): bumpless start after a gap or restart."""
 
+    def design_gains(self, config: Any, q0: np.ndarray) -> Any:
+        """``config`` with gains designed at the configuration ``q0`` (called, with the lock
+        held, when ``config.gains`` is None: ``GAINS_NEED_CONFIGURATION``)."""
+        raise NotImplementedError
+
+    def gain_choice(self, values: dict[str, Any]) -> GainChoice:
+        """The validated gain parameters and their precedence (laws.gains.choose_gains)."""
+        return choose_gains(
+            self.n,
+            params.numbers(values, "kp"),
+            params.numbers(values, "kd"),
+            params.numbers(values, "omega_n"),
+            params.numbers(values, "zeta"),
+        )
+
+    def _with_gains(self, config: Any) -> Any:
+        """``config`` with its gains designed at the start configuration when they need it
+        and it is known (with the lock held: the model's data is shared with the tick)."""
+        if config.gains is None and self._q0 is not None:
+            return self.design_gains(config, self._q0)
+        return config
+
     # -- parameters --------------------------------------------------------------------
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         values = params.with_changes(self, self._specs, changes)
@@ -232,14 +333,16 @@ class JointController(Node):
             model = self._model_for(values)
             config = self.build_config(values, model)
             timeout = params.positive(values, "state_timeout")
+            with self._lock:  # between two ticks
+                config = self._with_gains(config)
+                self.config = config  # swapped whole; a tick reads it once
+                self.model, self._perturbation = model, model_perturbation(values)
+                self._state_timeout = timeout
+                self._values = values
         except ValueError as err:
             self.counts["rejected.parameters"] += 1
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
-        with self._lock:  # between two ticks
-            self.config = config  # swapped whole; a tick reads it once
-            self.model, self._perturbation = model, model_perturbation(values)
-            self._state_timeout = timeout
         self._publish_config(values)
         self.get_logger().info(
             "parameters updated: " + ", ".join(f"{p.name}={p.value}" for p in changes)
@@ -247,7 +350,12 @@ class JointController(Node):
         return SetParametersResult(successful=True)
 
     def _diagnostic_values(self, summary: Any) -> dict[str, Any]:
-        return {"trigger": self.trigger, "commanding": int(not self._silent), **self.counts}
+        return {
+            "trigger": self.trigger,
+            "trigger_parameter": self.trigger_parameter,
+            "commanding": int(not self._silent),
+            **self.counts,
+        }
 
     def _alarm(self) -> str | None:
         """Why the controller is not doing its job right now (an ERROR on /diagnostics)."""
@@ -261,20 +369,32 @@ class JointController(Node):
 
     def _publish_config(self, values: dict[str, Any]) -> None:
         lower, upper = self.model.position_limits
+        config = self.config
+        choice: GainChoice = config.choice
+        gains = config.gains
+        design = {}
+        if choice.designed:
+            design = {"omega_n": choice.omega_n, "zeta": choice.zeta}
+            if self.GAINS_NEED_CONFIGURATION:
+                design["gains_configuration"] = self._q0
         self._config_pub.publish(
             config_message(
                 {
                     "node": self.get_fully_qualified_name(),
                     "executable": self.EXECUTABLE,
-                    "law": self.law_name(self.config),
+                    "law": self.law_name(config),
                     "robot": self._robot_name,
                     "joints": list(self.joints),
                     "rate": self._rate,
                     "trigger": self.trigger,
+                    "trigger_parameter": self.trigger_parameter,
                     "effort_limits": self.effort_limits,
                     "position_limits": [[lo, hi] for lo, hi in zip(lower, upper, strict=True)],
-                    "kp": self.config.gains.kp,
-                    "kd": self.config.gains.kd,
+                    # null until designed at the first measured configuration
+                    "kp": None if gains is None else gains.kp,
+                    "kd": None if gains is None else gains.kd,
+                    "gains_from": choice.source,
+                    **design,
                     "parameters": values,
                 }
             )
@@ -289,6 +409,9 @@ class JointController(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_reference(self, msg: JointTrajectory, info: Any = None) -> None:
+        if self.trigger == "pending":  # its time base (state stamps or clock) is not known
+            self._deferred.append(msg)
+            return
         try:
             traj = trajectory_from_msg(
                 msg, self._order, self._now(), 0, self.model.position_limits
@@ -320,27 +443,36 @@ class JointController(Node):
             previous = -1
         self._q, self._dq, self._state_ns = q, dq, stamp
         self._state_sent_ns = info["source_timestamp"]
+        self._state_arrival = time.monotonic()
         if self.trigger == "state":
             if stamp == self._answered_ns:  # the same state again: repeat the answer
                 self._pub.publish(self._command_bytes)
                 return
-            sent = self._tick(stamp * 1e-9)
-            if sent < 0:
-                return
-            self.loop_stats.tick(
-                start,
-                time.perf_counter_ns(),
-                sent - self._state_sent_ns,
-                -1,
-                stamp - previous if previous >= 0 else -1,
-            )
+            self._answer(start, previous)
+
+    def _answer(self, start: int, previous: int) -> None:
+        """trigger=state: answer the newest state (``previous``: the stamp before it)."""
+        stamp = self._state_ns
+        if self.config.gains is None:
+            self._design_gains()
+        sent = self._tick(stamp * 1e-9)
+        if sent < 0:
+            return
+        self.loop_stats.tick(
+            start,
+            time.perf_counter_ns(),
+            sent - self._state_sent_ns,
+            -1,
+            stamp - previous if previous >= 0 else -1,
+        )
 
     def _on_timer(self) -> None:
         start = time.perf_counter_ns()
-        if self._q is None:
+        if self._q is None or self.trigger != "timer":
             return
         now = self._now()
-        if now - self._state_ns * 1e-9 > self._state_timeout:
+        # judged by arrival on this node's steady clock: the stamps are the plant's time
+        if time.monotonic() - self._state_arrival > self._state_timeout:
             if not self._silent:
                 self.get_logger().error(
                     f"no joint state for more than {self._state_timeout} s: not commanding"
@@ -353,6 +485,8 @@ class JointController(Node):
             self._silent = False
             self.counts["restarts"] += 1
             self._restart()
+        if self.config.gains is None:
+            self._design_gains()
         sent = self._tick(now)
         if sent < 0:
             return
@@ -365,8 +499,49 @@ class JointController(Node):
         self._pending = []
         self._t_last = None
         self.reset_state()
+        with self._lock:  # gains designed at start: again at the next state
+            self._q0 = None
+            if self.GAINS_NEED_CONFIGURATION and self.config.choice.designed:
+                self.config = dataclasses.replace(self.config, gains=None)
+
+    # -- trigger: auto -----------------------------------------------------------------
+    def _on_plant_mode(self, trigger: str, reason: str) -> None:
+        """The plant mode watcher decided (executor thread): hand over to the control path."""
+        self.control_path.post(lambda: self._set_trigger(trigger, reason))
+
+    def _set_trigger(self, trigger: str, reason: str) -> None:
+        """Switch to ``trigger`` (control-path thread)."""
+        if trigger == self.trigger:
+            return
+        was = self.trigger
+        self.trigger, self._trigger_reason = trigger, reason
+        self._nominal_ns = round(1e9 / self._rate) if trigger == "timer" else -1
+        if self._timer is not None:
+            if trigger == "timer":
+                self._timer.reset()
+            else:
+                self._timer.cancel()
+        if was != "pending":  # another plant: another time base, start over from it
+            self._restart()
+        self.get_logger().info(self._trigger_text())
+        self._publish_config(self._values)
+        deferred, self._deferred = self._deferred, []
+        for msg in deferred:
+            self._on_reference(msg)
+        if trigger == "state" and self._q is not None and self._state_ns != self._answered_ns:
+            # the plant has been waiting for this answer
+            self._answer(time.perf_counter_ns(), -1)
 
     # -- the tick ----------------------------------------------------------------------
+    def _design_gains(self) -> None:
+        """Before a tick: gains designed at the first measured configuration (the newest
+        state) when they wait for it; ``~/config`` then shows them."""
+        with self._lock:
+            self._q0 = self._q.copy()
+            self.config = self.design_gains(self.config, self._q0)
+        self.get_logger().info(f"gains {self._gains_text()} at q0={self._q0.tolist()}")
+        self._publish_config(self._values)
+
     def _sample(self, t: float) -> Sample:
         if self._reference is None:  # hold the configuration measured at start
             self._set_reference(Reference.hold(self._q, t))

@@ -6,9 +6,11 @@
 - ``feedforward_pd``           τ = B̂(q)q̈_d + Ĉ(q, q̇)q̇_d + F̂q̇_d + ĝ(q) + K_D ė + K_P e (eq. 17)
 - ``precomputed_feedforward``  the same feedforward evaluated on the reference, + ĝ(q) + PD
 
-Gains are ``kp``/``kd``, or per-joint ``omega_n``/``zeta`` (K_P = ω_n², K_D = 2ζω_n) when
-``omega_n`` > 0. The hatted model is the controller's own Pinocchio model of the URDF with
-the ``model_*`` perturbations. Everything can be changed while the node runs.
+Gains are per-joint ``omega_n``/``zeta`` (K_P = ω_n², K_D = 2ζω_n) when ``omega_n`` > 0, else
+``kp``/``kd`` when ``kp`` > 0, else the defaults ω_n = 10 rad/s, ζ = ``zeta`` (1)
+(:func:`~joint_space_control.laws.gains.choose_gains`). The hatted model is the controller's
+own Pinocchio model of the URDF with the ``model_*`` perturbations. Everything can be
+changed while the node runs.
 """
 
 from __future__ import annotations
@@ -18,8 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from joint_space_control.arrays import per_joint
-from joint_space_control.laws.gains import PDGains
+from joint_space_control.laws.gains import GainChoice, PDGains, inverse_dynamics_gains
 from joint_space_control.laws.inverse_dynamics import (
     LAWS,
     ModelLaw,
@@ -39,22 +40,14 @@ class IDConfig:
     model: RobotModel
     gains: PDGains
     law: ModelLaw
+    choice: GainChoice
 
 
-def gains_from_parameters(values: dict[str, Any], n: int) -> PDGains:
-    """K_P, K_D from ``omega_n``/``zeta`` when any ω_n > 0 (all must then be > 0), else from
-    ``kp``/``kd``."""
-    omega = per_joint(params.numbers(values, "omega_n"), n, "omega_n")
-    if not np.any(omega > 0):
-        if np.any(omega < 0):
-            raise ValueError(f"'omega_n' must be > 0, got {omega.tolist()}")
-        return PDGains.build(n, params.numbers(values, "kp"), params.numbers(values, "kd"))
-    zeta = per_joint(params.numbers(values, "zeta"), n, "zeta")
-    if np.any(omega <= 0):
-        raise ValueError(f"'omega_n' must be > 0 on every joint, got {omega.tolist()}")
-    if np.any(zeta < 0):
-        raise ValueError(f"'zeta' must be >= 0, got {zeta.tolist()}")
-    return PDGains.build(n, omega**2, 2.0 * zeta * omega)
+def gains_from_choice(choice: GainChoice, n: int) -> PDGains:
+    """K_P = ω_n², K_D = 2ζω_n from ω_n, ζ (given or the defaults), else ``kp``/``kd``."""
+    if choice.designed:
+        return inverse_dynamics_gains(choice.omega_n, choice.zeta, n)
+    return PDGains.build(n, choice.kp, choice.kd)
 
 
 class InverseDynamicsController(JointController):
@@ -65,16 +58,6 @@ class InverseDynamicsController(JointController):
             "inverse_dynamics",
             "inverse_dynamics (eq. 15) | feedforward_pd (eq. 17) | precomputed_feedforward",
         ),
-        params.ParamSpec(
-            "omega_n",
-            0.0,
-            "Natural frequency ω_n [rad/s], one or per joint; > 0 sets K_P = ω_n², "
-            "K_D = 2ζω_n instead of kp/kd; 0: use kp/kd",
-            dynamic=True,
-        ),
-        params.ParamSpec(
-            "zeta", 1.0, "Damping ratio ζ, one or per joint, >= 0 (with omega_n)", dynamic=True
-        ),
     )
 
     def __init__(self, **kwargs: Any) -> None:
@@ -83,8 +66,9 @@ class InverseDynamicsController(JointController):
         super().__init__(self.EXECUTABLE, **kwargs)
 
     def build_config(self, values: dict[str, Any], model: RobotModel) -> IDConfig:
+        choice = self.gain_choice(values)
         return IDConfig(
-            model, gains_from_parameters(values, self.n), ModelLaw.parse(values["law"])
+            model, gains_from_choice(choice, self.n), ModelLaw.parse(values["law"]), choice
         )
 
     def law_name(self, config: IDConfig) -> str:

@@ -5,17 +5,28 @@
 ``gravity_compensation`` picks ĝ: ``full`` g(q), ``none`` 0, ``desired`` g(q_d); ``ki`` > 0
 adds integral action (with anti-windup); ``gravity_estimate`` is the constant u of the
 iterative gravity estimation. All of them can be changed while the node runs.
+
+Gains: ``kp``, ``kd`` [N·m/rad, N·m·s/rad] as given, or designed from ``omega_n``/``zeta``
+(given, or the defaults ω_n = 10 rad/s, ζ = 1 when no gain is given) with the controller
+model's inertia at the first measured configuration q₀ (:func:`~joint_space_control.laws.
+gains.pd_gains_from_second_order`):
+
+    K_P,i = B̂_ii(q₀) ω_n,i²,   K_D,i = 2 ζ_i B̂_ii(q₀) ω_n,i
+
+so that each joint, about q₀, is a second-order loop with that ω_n and ζ whatever its
+inertia. They are designed again at the configuration measured after a restart, and at q₀
+when ω_n, ζ or the model parameters change; ``~/config`` shows the gains in force.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from joint_space_control.arrays import per_joint
-from joint_space_control.laws.gains import PDGains
+from joint_space_control.arrays import nonnegative, per_joint
+from joint_space_control.laws.gains import GainChoice, PDGains, pd_gains_from_second_order
 from joint_space_control.laws.pd_gravity import (
     GravityCompensation,
     TorqueSplit,
@@ -32,9 +43,11 @@ from joint_space_control.trajectories.reference import Sample
 @dataclass(frozen=True)
 class PDConfig:
     model: RobotModel
-    gains: PDGains
+    gains: PDGains | None  # None: designed from ω_n, ζ at the first measured configuration
     gravity: GravityCompensation
     gravity_estimate: np.ndarray
+    choice: GainChoice
+    ki: np.ndarray
 
 
 class PDGravityController(JointController):
@@ -61,6 +74,7 @@ class PDGravityController(JointController):
     )
 
     EXECUTABLE = "pd_gravity_controller"
+    GAINS_NEED_CONFIGURATION = True
 
     def __init__(self, **kwargs: Any) -> None:
         self._integral: np.ndarray | None = None
@@ -71,15 +85,18 @@ class PDGravityController(JointController):
 
     def build_config(self, values: dict[str, Any], model: RobotModel) -> PDConfig:
         n = self.n
-        gains = PDGains.build(
-            n,
-            params.numbers(values, "kp"),
-            params.numbers(values, "kd"),
-            params.numbers(values, "ki"),
-        )
+        choice = self.gain_choice(values)
+        ki = nonnegative(params.numbers(values, "ki"), n, "ki")
+        gains = None if choice.designed else PDGains.build(n, choice.kp, choice.kd, ki)
         mode = GravityCompensation.parse(values["gravity_compensation"])
         estimate = per_joint(params.numbers(values, "gravity_estimate"), n, "gravity_estimate")
-        return PDConfig(model, gains, mode, estimate)
+        return PDConfig(model, gains, mode, estimate, choice, ki)
+
+    def design_gains(self, config: PDConfig, q0: np.ndarray) -> PDConfig:
+        inertia = np.diag(config.model.inertia(q0))
+        choice = config.choice
+        gains = pd_gains_from_second_order(inertia, choice.omega_n, choice.zeta, config.ki)
+        return replace(config, gains=gains)
 
     def law_name(self, config: PDConfig) -> str:
         return "pd_gravity"  # the variant: gravity_compensation, ki in "parameters"

@@ -1,0 +1,142 @@
+"""Nodes on their defaults work together: ``trigger: auto`` follows the plant's mode, stale
+states are judged by arrival (so a controller without use_sim_time commands a realtime
+plant), the default gains (ω_n = 10 rad/s, ζ = 1) hold the arm, and a lockstep plant says
+why it waits when a controller cannot answer it. Each test leases its own ROS domain and
+stops every process it starts."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from std_msgs.msg import String
+
+from joint_space_control.experiments.probe import LoopProbe
+from joint_space_control.experiments.processes import ProcessGroup
+from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.model.robots import resolve_robot
+from joint_space_control.nodes.messages import CONFIG_QOS
+
+from .conftest import next_domain_id
+
+pytestmark = pytest.mark.integration
+
+CONTROLLERS = ["pd_gravity_controller", "inverse_dynamics_controller"]
+SIM = "sim_bridge: control loop"
+
+
+class Nodes:
+    def __init__(self, workdir: Path) -> None:
+        domain = next_domain_id()
+        self.group = ProcessGroup(workdir, domain)
+        self.probe = LoopProbe(domain, name="defaults_probe")
+        self.configs: dict[str, dict] = {}
+
+    def start(self, executable: str, params: dict) -> None:
+        self.group.start(executable, params)
+
+    def watch_config(self, controller: str) -> None:
+        self.probe.node.create_subscription(
+            String,
+            f"/{controller}/config",
+            lambda m: self.configs.__setitem__(controller, json.loads(m.data)),
+            CONFIG_QOS,
+        )
+
+    def status(self, name: str, until, timeout: float = 20.0) -> dict:
+        return self.probe.wait_for_diagnostics(
+            [name], until=lambda d: until(d[name]), timeout=timeout, check=self.group.check_alive
+        )[name]
+
+    def close(self) -> None:
+        try:
+            self.probe.close()
+        finally:
+            self.group.stop_all()
+
+
+@pytest.fixture
+def nodes(tmp_path: Path) -> Iterator[Nodes]:
+    n = Nodes(tmp_path)
+    try:
+        yield n
+    finally:
+        n.close()
+
+
+def pd_default_gains() -> tuple[np.ndarray, np.ndarray]:
+    """ω_n = 10 rad/s, ζ = 1 scaled by B_ii at the default start configuration q = 0."""
+    b = np.diag(RobotModel(resolve_robot("planar_2dof")).inertia(np.zeros(2)))
+    return b * 100.0, b * 20.0
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_lockstep_plant_runs_with_a_controller_on_sim_time_only(nodes, controller):
+    """The hook check: sim_bridge mode:=lockstep and a controller with nothing but
+    use_sim_time:=true: simulated time passes 2 s (before: the timer waited for /clock)."""
+    nodes.start("sim_bridge", {"mode": "lockstep"})
+    nodes.start(controller, {"use_sim_time": True})
+    nodes.watch_config(controller)
+    nodes.probe.run_until(2.0, 60.0, nodes.group.check_alive)
+    status = nodes.status(f"{controller}: control loop", lambda s: s["trigger"] == "state")
+    assert status["trigger_parameter"] == "auto" and status["commanding"] == 1
+    nodes.probe.spin_until(
+        lambda: nodes.configs.get(controller, {}).get("kp") is not None,
+        10.0,
+        "the gains in ~/config",
+        nodes.group.check_alive,
+    )
+    config = nodes.configs[controller]
+    assert config["trigger"] == "state" and config["gains_from"] == "default"
+    if controller == "pd_gravity_controller":
+        kp, kd = pd_default_gains()
+        np.testing.assert_allclose(config["kp"], kp, rtol=1e-9)
+        np.testing.assert_allclose(config["kd"], kd, rtol=1e-9)
+        np.testing.assert_allclose(config["gains_configuration"], [0.0, 0.0], atol=1e-9)
+    else:
+        np.testing.assert_allclose(config["kp"], [100.0, 100.0])
+        np.testing.assert_allclose(config["kd"], [20.0, 20.0])
+    # the arm holds where it started (gravity compensated, default gains)
+    _, q, _, _ = nodes.probe.recording.arrays()
+    assert np.max(np.abs(q[-1])) < 1e-2, q[-1]
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_realtime_plant_is_commanded_by_a_controller_with_nothing_set(nodes, controller):
+    """Realtime sim_bridge and a controller on the wall clock (no use_sim_time): the states'
+    stamps are simulation time, yet the controller commands and the brakes come off."""
+    nodes.start("sim_bridge", {})
+    nodes.start(controller, {})
+    status = nodes.status(
+        f"{controller}: control loop", lambda s: s["trigger"] == "timer", timeout=30.0
+    )
+    assert status["commanding"] == 1 and status["stale.stops"] == 0
+    sim = nodes.status(SIM, lambda s: s["braking"] == 0 and s["sim_time_s"] > 1.5, 30.0)
+    assert sim["brake.engaged"] == 0  # never timed out once commanding
+    nodes.probe.spin_for(0.3)
+    _, q, _, tau = nodes.probe.recording.arrays()
+    assert np.max(np.abs(q[-1])) < 2e-2, q[-1]  # held under gravity
+    assert np.abs(tau[-1]).max() > 1.0  # by torques, not by the brakes alone
+
+
+def test_lockstep_plant_warns_about_a_timer_controller_on_sim_time(nodes):
+    """trigger: timer with use_sim_time against a lockstep plant cannot run: sim_bridge
+    says so at WARN with the likely cause, within a second or so of the stall."""
+    nodes.start("sim_bridge", {"mode": "lockstep"})
+    nodes.start("pd_gravity_controller", {"use_sim_time": True, "trigger": "timer"})
+    sim = nodes.group.nodes["sim_bridge"]
+    nodes.probe.spin_until(
+        lambda: "publish(es) effort_command" in sim.log(),
+        20.0,
+        "the stall warning",
+        nodes.group.check_alive,
+    )
+    line = next(x for x in sim.log().splitlines() if "publish(es) effort_command" in x)
+    assert "[WARN]" in line and "pd_gravity_controller" in line
+    assert "use_sim_time" in line and "trigger:=state or auto" in line
+    nodes.probe.spin_for(2.0)
+    assert nodes.probe.latest_time() == 0.0  # still waiting: the warning was not a false one
+    assert sum("publish(es) effort_command" in x for x in sim.log().splitlines()) == 1  # once
