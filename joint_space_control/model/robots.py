@@ -10,10 +10,11 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
+
+from joint_space_control.paths import data_dir
 
 #: Joint types that carry one actuated degree of freedom.
 ACTUATED_JOINT_TYPES = ("revolute", "continuous", "prismatic")
@@ -35,7 +36,8 @@ def _pybullet_data(relative: str) -> Path:
 
 
 def _packaged_urdf(file_name: str) -> Path:
-    return Path(str(resources.files("joint_space_control.robots").joinpath("urdf", file_name)))
+    """A URDF shipped as package data (found through importlib.resources, see paths.py)."""
+    return data_dir() / "robots" / "urdf" / file_name
 
 
 def builtin_robots() -> dict[str, RobotSpec]:
