@@ -4,6 +4,7 @@
 #   make test          ruff check, ruff format --check, pytest   (what .ci/run runs first)
 #   make demo          short end-to-end demo into out/demo
 #   make colcon-check  colcon build into build/colcon_ws and check the ament layout
+#   make wheel-check   build the wheel, install it into a fresh venv, run jsc from /tmp
 #   make lint / format / clean
 #
 # Every tool is called through .venv/bin/... explicitly: nothing needs `source`.
@@ -20,7 +21,7 @@ STAMP := $(VENV)/.install-stamp
 # Console scripts that must land in .venv/bin (checked after the install, see setup.cfg).
 VENV_SCRIPTS := sim_bridge pd_gravity_controller inverse_dynamics_controller trajectory_generator recorder jsc
 
-.PHONY: venv demo test lint format colcon-check clean distclean
+.PHONY: venv demo test lint format colcon-check wheel-check clean distclean
 
 venv: $(STAMP)
 
@@ -59,6 +60,12 @@ format: venv
 
 colcon-check: venv
 	COLCON=$(VENV)/bin/colcon bash .ci/colcon_check.sh
+
+# A regular (non-editable) install, as `pip install '.[pypi]'` users get it: the wheel in a
+# fresh venv under build/wheel_check, `jsc experiment --list`, `jsc demo` and one scenario
+# run from a temporary directory outside the checkout.
+wheel-check: venv
+	BUILD_PY=$(PY) PYTHON=$(PYTHON) bash .ci/wheel_check.sh
 
 clean:
 	rm -rf build install log out *.egg-info .pytest_cache .ruff_cache .hypothesis

@@ -6,7 +6,13 @@ One setup.py serves both supported installs (see INTERFACES.md, "Package"):
   configs and URDFs under share/, and setup.cfg sends the console scripts to
   lib/joint_space_control/ where `ros2 run` looks for them;
 - pip into a virtual environment: `pip install -e '.[pypi,test]'` (what `make venv` does)
-  pulls ROS 2 Jazzy and the other runtime dependencies from PyPI through the `pypi` extra.
+  or a regular `pip install '.[pypi]'` / a wheel (`make wheel-check`) pulls ROS 2 Jazzy and
+  the other runtime dependencies from PyPI through the `pypi` extra.
+
+The data files the code reads (config/*.yaml, config/experiments/*.yaml, robots/urdf/*.urdf)
+live inside the Python package and ship as package_data, so every install finds them with
+importlib.resources (joint_space_control/paths.py); the share/ copies are only for users'
+`--params-file` paths in a ROS workspace.
 
 install_requires holds only setuptools on purpose: in a ROS install rclpy, the message
 packages and most Python deps come from apt/rosdep and carry no PyPI metadata, so any
@@ -18,6 +24,8 @@ from glob import glob
 from setuptools import find_packages, setup
 
 PACKAGE_NAME = "joint_space_control"
+# Parameter and scenario files: package data (read by the code) and share/ (for users).
+CONFIG = f"{PACKAGE_NAME}/config"
 
 # Runtime dependencies when installing from PyPI (no ROS apt packages on the machine).
 PYPI_REQUIRES = [
@@ -65,17 +73,22 @@ setup(
     maintainer_email="jsc@example.com",
     python_requires=">=3.10",
     packages=find_packages(exclude=["tests", "tests.*"]),
-    package_data={f"{PACKAGE_NAME}.robots": ["urdf/*.urdf"]},
+    package_data={
+        PACKAGE_NAME: ["config/*.yaml", "config/experiments/*.yaml"],
+        f"{PACKAGE_NAME}.robots": ["urdf/*.urdf"],
+    },
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE_NAME}"]),
         (f"share/{PACKAGE_NAME}", ["package.xml"]),
-        (f"share/{PACKAGE_NAME}/config", sorted(glob("config/*.yaml"))),
-        (f"share/{PACKAGE_NAME}/config/experiments", sorted(glob("config/experiments/*.yaml"))),
+        (f"share/{PACKAGE_NAME}/config", sorted(glob(f"{CONFIG}/*.yaml"))),
+        (f"share/{PACKAGE_NAME}/config/experiments", sorted(glob(f"{CONFIG}/experiments/*.yaml"))),
         (f"share/{PACKAGE_NAME}/urdf", sorted(glob(f"{PACKAGE_NAME}/robots/urdf/*.urdf"))),
     ],
     install_requires=["setuptools"],
     extras_require={"pypi": PYPI_REQUIRES, "test": TEST_REQUIRES},
-    zip_safe=True,
+    # The URDFs and scenario files are handed to PyBullet, Pinocchio and node processes as
+    # file names: they must be real files, never inside a zipped egg.
+    zip_safe=False,
     entry_points={
         "console_scripts": [
             "sim_bridge = sim_bridge.node:main",

@@ -50,12 +50,17 @@ done
 for f in \
   "share/ament_index/resource_index/packages/$PKG" \
   "share/$PKG/package.xml" \
+  "share/$PKG/config/sim_bridge.yaml" \
+  "share/$PKG/config/experiments/q6_inverse_dynamics_nominal.yaml" \
   "share/$PKG/urdf/planar_2dof.urdf"; do
   [[ -f "$PREFIX/$f" ]] || missing+=("$f")
 done
-# The Python packages themselves, with the URDF shipped as package data.
+# The Python packages themselves, with the configs and the URDF shipped as package data
+# (what the code reads, through importlib.resources: joint_space_control/paths.py).
 site=("$PREFIX"/lib/python3*/site-packages)
-for f in "$PKG/__init__.py" "$PKG/robots/urdf/planar_2dof.urdf" "sim_bridge/__init__.py"; do
+for f in "$PKG/__init__.py" "$PKG/config/sim_bridge.yaml" \
+  "$PKG/config/experiments/q6_inverse_dynamics_nominal.yaml" \
+  "$PKG/robots/urdf/planar_2dof.urdf" "sim_bridge/__init__.py"; do
   [[ -f "${site[0]}/$f" ]] || missing+=("lib/python3.*/site-packages/$f")
 done
 
@@ -64,4 +69,22 @@ if ((${#missing[@]})); then
   printf '  - %s\n' "${missing[@]}" >&2
   exit 1
 fi
-echo "colcon-check: OK ($PREFIX: ${EXECUTABLES[*]} in lib/$PKG, ament index, package.xml, urdf)"
+# The installed package finds its scenarios by itself: imported from the install (not the
+# checkout, not a sourced workspace) with colcon's Python, the one that built it.
+PY="$(dirname "$COLCON")/python3"
+if [[ -x "$PY" ]]; then
+  (cd "$WS" && env -u AMENT_PREFIX_PATH PYTHONPATH="${site[0]}" "$PY" -c '
+import sys
+import joint_space_control
+from joint_space_control.experiments.scenario import available
+site = sys.argv[1]
+assert joint_space_control.__file__.startswith(site), joint_space_control.__file__
+found = available()
+assert "q6_inverse_dynamics_nominal" in found, sorted(found)
+assert all(str(p).startswith(site) for p in found.values()), found
+' "${site[0]}") || {
+    echo "colcon-check: FAILED: the installed package does not find its scenarios" >&2
+    exit 1
+  }
+fi
+echo "colcon-check: OK ($PREFIX: ${EXECUTABLES[*]} in lib/$PKG, ament index, package.xml, config, urdf, package data)"

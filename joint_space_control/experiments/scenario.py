@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from joint_space_control.paths import share_dir
+from joint_space_control.paths import experiments_dir
 from joint_space_control.trajectories import shapes
 from joint_space_control.trajectories.reference import Trajectory
 
@@ -147,14 +147,9 @@ def _settings_key(key: str, what: str) -> str:
     return key
 
 
-def experiments_dir() -> Path:
-    return share_dir() / "config" / "experiments"
-
-
 def available() -> dict[str, Path]:
-    """Installed scenarios by name, in name order."""
-    directory = experiments_dir()
-    return {p.stem: p for p in sorted(directory.glob("*.yaml"))} if directory.is_dir() else {}
+    """Installed scenarios (package data, see paths.py) by name, in name order."""
+    return {p.stem: p for p in sorted(experiments_dir().glob("*.yaml"))}
 
 
 def find(name_or_file: str) -> Path:

@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +25,7 @@ from joint_space_control.model.description import (
     read_description,
     resolve_meshes,
 )
+from joint_space_control.paths import data_dir
 
 #: Joint types that carry one actuated degree of freedom.
 ACTUATED_JOINT_TYPES = ("revolute", "continuous", "prismatic")
@@ -52,7 +52,8 @@ def _pybullet_data(relative: str) -> Path:
 
 
 def _packaged_urdf(file_name: str) -> Path:
-    return Path(str(resources.files("joint_space_control.robots").joinpath("urdf", file_name)))
+    """A URDF shipped as package data (found through importlib.resources, see paths.py)."""
+    return data_dir() / "robots" / "urdf" / file_name
 
 
 def builtin_robots() -> dict[str, RobotSpec]:
