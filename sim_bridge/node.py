@@ -231,8 +231,10 @@ class SimBridge(Node):
                 self._check_stall,
                 clock=RosClock(clock_type=ClockType.STEADY_TIME),
             )
-            if not self._paused:
-                self._publish_state()
+            # The first state goes out from the control-path thread once it serves commands:
+            # published here, its answer could arrive while the process still sets up (a
+            # start-up garbage collection, say) and be overwritten in the keep-last-1 queue.
+            self.control_path.post(self._publish_first_state)
         else:
             self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
             self._thread.start()
@@ -326,6 +328,11 @@ class SimBridge(Node):
                 # Paused with this state out: its answer is ignored; ~/resume sends the
                 # same state again, and the controller repeats its answer to it.
                 self._paused, self._pause_at_ns = True, None
+
+    def _publish_first_state(self) -> None:
+        with self._lock:
+            if not self._paused and self._awaiting is None:
+                self._publish_state()
 
     def _republish(self, after: float) -> None:
         with self._lock:
