@@ -56,7 +56,13 @@ class ClosedLoop:
                 controller, {"robot": robot, **(controller_params or {}), "trigger": "state"}
             )
             self.probe = LoopProbe(domain_id, name=f"jsc_probe_{domain_id}")
-            self.probe.wait_for_graph(check=self.group.check_alive)
+            # the controller itself subscribed (a recorder alone satisfies the topic counts)
+            self.probe.wait_for_subscriber(
+                controller, ["/reference", "/joint_states"], check=self.group.check_alive
+            )
+            self.probe.wait_for_graph(
+                check=self.group.check_alive, reference_subscribers=1 + (record is not None)
+            )
             if record is not None:
                 self.probe.wait_for_subscriber(
                     "recorder",

@@ -150,9 +150,15 @@ class LoopProbe(RosClient):
         return dict(latest)
 
     def wait_for_graph(
-        self, timeout: float = 20.0, check: Callable[[], None] | None = None
+        self,
+        timeout: float = 20.0,
+        check: Callable[[], None] | None = None,
+        reference_subscribers: int = 1,
     ) -> None:
-        """Wait until a controller and the simulator are connected through the topics."""
+        """Wait until a controller and the simulator are connected through the topics, and
+        ``reference_subscribers`` subscriptions (the controller's, a recorder's) are matched
+        with the probe's reference publisher: a reference acknowledged by fewer would miss
+        one of them."""
         n = self.node
         self.spin_until(
             lambda: (
@@ -160,7 +166,7 @@ class LoopProbe(RosClient):
                 and n.count_subscribers("joint_states") >= 2
                 and n.count_publishers("effort_command") >= 1
                 and n.count_subscribers("effort_command") >= 1
-                and self._ref_pub.get_subscription_count() >= 1
+                and self._ref_pub.get_subscription_count() >= reference_subscribers
             ),
             timeout,
             "the simulator and the controller to connect",
