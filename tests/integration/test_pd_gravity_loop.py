@@ -36,10 +36,12 @@ def test_pd_gravity_converges_to_setpoint(make_loop, robot):
 
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_pure_pd_settles_at_predicted_offset_then_full_gravity_removes_it(make_loop, robot):
-    loop = make_loop(robot, {"gravity_compensation": "none"})
+    # held at 8 s (pause_at): the change applies from there, however far the loop would run
+    # ahead of the probe
+    loop = make_loop(robot, {"gravity_compensation": "none"}, sim_params={"pause_at": 8.0})
     q_d = np.array(SETPOINTS[robot])
     loop.start(JOINTS[robot], [q_d])
-    loop.run_until(8.0)
+    loop.hold_at(8.0)
     q_e, dq = loop.final_state()
     assert np.max(np.abs(q_d - q_e)) > 1e-2, "pure PD should leave a visible offset"
     residual = offset_residual(robot, q_e, q_d)
@@ -47,6 +49,7 @@ def test_pure_pd_settles_at_predicted_offset_then_full_gravity_removes_it(make_l
 
     results = loop.probe.set_parameters(loop.controller, {"gravity_compensation": "full"})
     assert results[0].successful, results[0].reason
+    loop.resume()
     loop.run_until(16.0)
     q, _ = loop.final_state()
     assert np.max(np.abs(q_d - q)) < 1e-3, f"offset left after switching to full: {q_d - q}"
