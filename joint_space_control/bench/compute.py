@@ -10,18 +10,42 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from joint_space_control.laws.gains import PDGains
-from joint_space_control.laws.inverse_dynamics import inverse_dynamics
-from joint_space_control.laws.pd_gravity import pid_torque_split
+from joint_space_control.control.controller import Controller
+from joint_space_control.control.inverse_dynamics import (
+    IDConfig,
+    InverseDynamicsController,
+    gains_from_choice,
+)
+from joint_space_control.control.pd_gravity import PDConfig, PDGravityController
+from joint_space_control.laws.gains import PDGains, choose_gains
+from joint_space_control.laws.inverse_dynamics import ModelLaw
+from joint_space_control.laws.pd_gravity import GravityCompensation
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.trajectories.reference import Reference, Sample, Trajectory
+from joint_space_control.trajectories.reference import Trajectory
 
 #: The laws benchmarked, by the controller that runs them.
 LAWS = {
     "pd_gravity": "pd_gravity_controller",
     "inverse_dynamics": "inverse_dynamics_controller",
 }
+
+
+def make_controller(model: RobotModel, law: str) -> Controller:
+    """The controller object its node runs for ``law``: PD + g(q) with K_P = 100, K_D = 20
+    on every joint, or inverse dynamics (eq. 15) with ω_n = 20 rad/s, ζ = 1."""
+    n = model.n
+    if law == "pd_gravity":
+        choice = choose_gains(n, 100.0, 20.0, 0.0, 1.0)
+        gains = PDGains.build(n, choice.kp, choice.kd)
+        zero = np.zeros(n)
+        config = PDConfig(model, gains, GravityCompensation.FULL, zero, choice, zero)
+        return PDGravityController(config, model.effort_limits)
+    if law == "inverse_dynamics":
+        choice = choose_gains(n, 0.0, 0.0, 20.0, 1.0)
+        config = IDConfig(model, gains_from_choice(choice, n), ModelLaw.INVERSE_DYNAMICS, choice)
+        return InverseDynamicsController(config, model.effort_limits)
+    raise ValueError(f"unknown law {law!r}; known: {list(LAWS)}")
 
 
 def percentiles_us(samples_ns: Sequence[int] | np.ndarray) -> dict[str, float]:
@@ -63,32 +87,21 @@ def _states(model: RobotModel, n: int, seed: int) -> list[tuple[np.ndarray, ...]
 
 
 def law_timings(robot: str, law: str, ticks: int, seed: int = 0) -> dict[str, Any]:
-    """Per-tick time of ``law`` on ``robot`` as its controller computes it (model calls
-    included), and of the Pinocchio calls alone, over ``ticks`` random states."""
+    """Per-tick time of the controller object's ``step`` for ``law`` on ``robot`` (what its
+    node calls every tick: reference sample, law with its model calls, gate and clamp), and
+    of the Pinocchio calls alone, over ``ticks`` random states holding a set-point."""
     model = RobotModel(resolve_robot(robot, ""))
     states = _states(model, ticks, seed)
-    gains = PDGains.build(model.n, 100.0, 20.0)
-    samples = [Sample(qd, dqd, ddqd) for _, _, qd, dqd, ddqd in states]
+    controller = make_controller(model, law)
     m, d = model.model, model.data
     if law == "pd_gravity":
-        integral, estimate = np.zeros(model.n), np.zeros(model.n)
-
-        def run_law(k: int) -> Any:
-            q, dq = states[k][0], states[k][1]
-            gravity = model.gravity(q) + estimate
-            return pid_torque_split(q, dq, samples[k].q, integral, gains, gravity)
-
         configs = [model.configuration(s[0]) for s in states]
 
         def run_pinocchio(k: int) -> Any:
             return pin.computeGeneralizedGravity(m, d, configs[k])
 
         calls = "computeGeneralizedGravity"
-    elif law == "inverse_dynamics":
-
-        def run_law(k: int) -> Any:
-            return inverse_dynamics(model, states[k][0], states[k][1], samples[k], gains)
-
+    else:
         configs = [(model.configuration(s[0]), np.array(s[1])) for s in states]
 
         def run_pinocchio(k: int) -> Any:
@@ -98,22 +111,25 @@ def law_timings(robot: str, law: str, ticks: int, seed: int = 0) -> dict[str, An
             return pin.computeGeneralizedGravity(m, d, qc)
 
         calls = "crba + nonLinearEffects + computeGeneralizedGravity"
-    else:
-        raise ValueError(f"unknown law {law!r}; known: {list(LAWS)}")
-    run_law(0), run_pinocchio(0)  # imports, first-call set-up
+
+    def run_step(k: int) -> Any:
+        return controller.step(k * 1e-3, states[k][0], states[k][1])
+
+    run_step(0), run_pinocchio(0)  # imports, first-call set-up
     return {
         "robot": robot,
         "law": law,
         "joints": model.n,
-        "law_per_tick": percentiles_us(time_each(run_law, ticks)),
+        "law_per_tick": percentiles_us(time_each(run_step, ticks)),
         "pinocchio_calls": calls,
         "pinocchio_per_tick": percentiles_us(time_each(run_pinocchio, ticks)),
     }
 
 
 def in_process_loop(robot: str, law: str, steps: int) -> dict[str, Any]:
-    """Closed loop of the PyBullet plant and ``law`` in one process, no ROS: steps per
-    second of plant state → reference sample → law → clamp → plant step (1 kHz)."""
+    """Closed loop of the PyBullet plant and the controller object in one process, no ROS:
+    steps per second of plant state → controller step → plant step (1 kHz), a 0.3 rad step
+    on every joint."""
     from sim_bridge.plant import Plant  # pybullet: only where the plant is needed
 
     spec = resolve_robot(robot, "")
@@ -121,28 +137,13 @@ def in_process_loop(robot: str, law: str, steps: int) -> dict[str, Any]:
     plant = Plant(spec, model.joint_names, 1000.0, locked_positions=model.locked_positions)
     try:
         n = model.n
-        gains = (
-            PDGains.build(n, 100.0, 20.0)
-            if law == "pd_gravity"
-            else PDGains.build(n, 400.0, 40.0)  # ω_n = 20 rad/s, ζ = 1
-        )
-        target = np.full(n, 0.3)
-        reference = Reference(
-            Trajectory.build(0.0, np.array([0.0]), target[None, :]),
-            Sample(np.zeros(n), np.zeros(n), np.zeros(n)),
-        )
+        controller = make_controller(model, law)
+        controller.add_trajectory(Trajectory.build(0.0, np.array([0.0]), np.full((1, n), 0.3)))
         q, dq, effort = np.empty(n), np.empty(n), np.empty(n)
-        integral = np.zeros(n)
-        limits = plant.effort_limits
 
         def step(k: int) -> None:
             plant.read_state(q, dq, effort)
-            ref = reference.sample(k * 1e-3)
-            if law == "pd_gravity":
-                split = pid_torque_split(q, dq, ref.q, integral, gains, model.gravity(q))
-            else:
-                split = inverse_dynamics(model, q, dq, ref, gains)
-            plant.step(np.clip(split.total, -limits, limits), 1)
+            plant.step(controller.step(k * 1e-3, q, dq).tau, 1)
 
         step(0)
         t0 = time.perf_counter()

@@ -40,7 +40,6 @@ published again with the gains in force.
 
 from __future__ import annotations
 
-import dataclasses
 import threading
 import time
 from typing import Any
@@ -53,8 +52,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
+from joint_space_control.control.controller import Controller, Step
 from joint_space_control.laws.gains import DEFAULT_OMEGA_N, DEFAULT_ZETA, GainChoice, choose_gains
-from joint_space_control.laws.split import TorqueSplit
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.control_path import ControlPath
@@ -74,7 +73,6 @@ from joint_space_control.nodes.messages import (
 )
 from joint_space_control.nodes.plant_mode import PlantModeWatcher
 from joint_space_control.nodes.wire import Float64ArrayImage, JointStateImage, JointStateReader
-from joint_space_control.trajectories.reference import Reference, Sample, Trajectory
 
 TRIGGERS = ("auto", "timer", "state")
 #: The safety counters of a controller (on /diagnostics; README "Safety").
@@ -86,8 +84,6 @@ COUNTERS = (
     "stale.stops",
     "restarts",
 )
-#: Longest time step integrated at once [s]; longer gaps (start-up, pauses) are cut.
-MAX_DT = 0.1
 
 COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
     params.ParamSpec("rate", 1000.0, "Control rate [Hz] with trigger=timer, > 0", read_only=True),
@@ -177,8 +173,13 @@ class JointController(Node):
     LAW_PARAMETERS: tuple[params.ParamSpec, ...] = ()
     #: The executable (and default node name) of the concrete controller.
     EXECUTABLE = ""
-    #: True when gains designed from ω_n, ζ depend on the configuration (:meth:`design_gains`).
-    GAINS_NEED_CONFIGURATION = False
+    #: The controller object the node drives (:mod:`joint_space_control.control`).
+    CORE: type[Controller] = Controller
+
+    @property
+    def config(self) -> Any:
+        """The configuration in force (the core's, swapped whole on a parameter update)."""
+        return self.core.config
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
@@ -191,15 +192,14 @@ class JointController(Node):
         self.joints = self.model.joint_names
         self.n = len(self.joints)
         self.effort_limits = self.model.effort_limits
-        self._lowest_effort = -self.effort_limits
         self._robot_name = spec.name
         self._rate = rate = params.positive(values, "rate")
         self.trigger_parameter = params.choice(values, "trigger", TRIGGERS)
         # the trigger in force: "timer" | "state" | "pending" (auto, plant mode not known)
         self.trigger = "pending" if self.trigger_parameter == "auto" else self.trigger_parameter
         self._trigger_reason = ""
-        self._q0: np.ndarray | None = None  # configuration measured at (re)start
-        self.config = self.build_config(values, self.model)
+        # the controller itself (no ROS): configuration, state, step
+        self.core = self.CORE(self.build_config(values, self.model), self.effort_limits)
         self._values = values  # the parameter values in force
         self._state_timeout = params.positive(values, "state_timeout")
         self._lock = threading.Lock()  # parameter updates wait for the end of a tick
@@ -216,11 +216,6 @@ class JointController(Node):
         self._state_arrival = 0.0  # when it arrived (time.monotonic) [s]
         self._deferred: list[JointTrajectory] = []  # references received while pending
         self._answered_ns = -1
-        self._t_last: float | None = None
-        self._reference: Reference | None = None
-        self._reference_last = np.inf  # time of its last point after its start [s]
-        self._held: Sample | None = None  # its sample from then on
-        self._pending: list[Trajectory] = []
         self._command = JointStateImage(self.joints, (0, 0, self.n))
         self._command_bytes = b""
         self._state = Float64ArrayImage(state_message(self.joints), 1 + len(STATE_FIELDS) * self.n)
@@ -293,22 +288,6 @@ class JointController(Node):
         """The law in force, as named in ``~/config`` (README)."""
         raise NotImplementedError
 
-    def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
-        raise NotImplementedError
-
-    def after_command(
-        self, ref: Sample, q: np.ndarray, tau_unclamped: np.ndarray, dt: float
-    ) -> None:
-        """Update internal state (integrators) once the command is out."""
-
-    def reset_state(self) -> None:
-        """Forget internal state (integrators): bumpless start after a gap or restart."""
-
-    def design_gains(self, config: Any, q0: np.ndarray) -> Any:
-        """``config`` with gains designed at the configuration ``q0`` (called, with the lock
-        held, when ``config.gains`` is None: ``GAINS_NEED_CONFIGURATION``)."""
-        raise NotImplementedError
-
     def gain_choice(self, values: dict[str, Any]) -> GainChoice:
         """The validated gain parameters and their precedence (laws.gains.choose_gains)."""
         return choose_gains(
@@ -319,13 +298,6 @@ class JointController(Node):
             params.numbers(values, "zeta"),
         )
 
-    def _with_gains(self, config: Any) -> Any:
-        """``config`` with its gains designed at the start configuration when they need it
-        and it is known (with the lock held: the model's data is shared with the tick)."""
-        if config.gains is None and self._q0 is not None:
-            return self.design_gains(config, self._q0)
-        return config
-
     # -- parameters --------------------------------------------------------------------
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         values = params.with_changes(self, self._specs, changes)
@@ -334,8 +306,7 @@ class JointController(Node):
             config = self.build_config(values, model)
             timeout = params.positive(values, "state_timeout")
             with self._lock:  # between two ticks
-                config = self._with_gains(config)
-                self.config = config  # swapped whole; a tick reads it once
+                self.core.set_config(config)  # swapped whole; a tick reads it once
                 self.model, self._perturbation = model, model_perturbation(values)
                 self._state_timeout = timeout
                 self._values = values
@@ -375,8 +346,8 @@ class JointController(Node):
         design = {}
         if choice.designed:
             design = {"omega_n": choice.omega_n, "zeta": choice.zeta}
-            if self.GAINS_NEED_CONFIGURATION:
-                design["gains_configuration"] = self._q0
+            if self.core.GAINS_NEED_CONFIGURATION:
+                design["gains_configuration"] = self.core.q0
         self._config_pub.publish(
             config_message(
                 {
@@ -420,7 +391,7 @@ class JointController(Node):
             self.counts["rejected.references"] += 1
             self.get_logger().warning(f"rejected reference: {err}", throttle_duration_sec=1.0)
             return
-        self._pending = [p for p in self._pending if p.start < traj.start] + [traj]
+        self.core.add_trajectory(traj)
         self.get_logger().info(
             f"reference accepted: {len(traj.times)} point(s) from t={traj.start:.3f} s"
         )
@@ -453,8 +424,6 @@ class JointController(Node):
     def _answer(self, start: int, previous: int) -> None:
         """trigger=state: answer the newest state (``previous``: the stamp before it)."""
         stamp = self._state_ns
-        if self.config.gains is None:
-            self._design_gains()
         sent = self._tick(stamp * 1e-9)
         if sent < 0:
             return
@@ -485,8 +454,6 @@ class JointController(Node):
             self._silent = False
             self.counts["restarts"] += 1
             self._restart()
-        if self.config.gains is None:
-            self._design_gains()
         sent = self._tick(now)
         if sent < 0:
             return
@@ -495,14 +462,8 @@ class JointController(Node):
         )
 
     def _restart(self) -> None:
-        self._reference, self._held, self._reference_last = None, None, np.inf
-        self._pending = []
-        self._t_last = None
-        self.reset_state()
         with self._lock:  # gains designed at start: again at the next state
-            self._q0 = None
-            if self.GAINS_NEED_CONFIGURATION and self.config.choice.designed:
-                self.config = dataclasses.replace(self.config, gains=None)
+            self.core.restart()
 
     # -- trigger: auto -----------------------------------------------------------------
     def _on_plant_mode(self, trigger: str, reason: str) -> None:
@@ -533,79 +494,75 @@ class JointController(Node):
             self._answer(time.perf_counter_ns(), -1)
 
     # -- the tick ----------------------------------------------------------------------
-    def _design_gains(self) -> None:
-        """Before a tick: gains designed at the first measured configuration (the newest
-        state) when they wait for it; ``~/config`` then shows them."""
-        with self._lock:
-            self._q0 = self._q.copy()
-            self.config = self.design_gains(self.config, self._q0)
-        self.get_logger().info(f"gains {self._gains_text()} at q0={self._q0.tolist()}")
-        self._publish_config(self._values)
-
-    def _sample(self, t: float) -> Sample:
-        if self._reference is None:  # hold the configuration measured at start
-            self._set_reference(Reference.hold(self._q, t))
-        while self._pending and self._pending[0].start <= t:
-            traj = self._pending.pop(0)
-            self._set_reference(Reference(traj, self._reference.sample(traj.start)))
-        # past the last point (Reference.sample's own test): the same sample every tick
-        if t - self._reference.trajectory.start >= self._reference_last:
-            if self._held is None:
-                self._held = self._reference.sample(t)
-            return self._held
-        return self._reference.sample(t)
-
-    def _set_reference(self, reference: Reference) -> None:
-        self._reference, self._held = reference, None
-        self._reference_last = reference.knots[0][-1]  # after its start [s]
-
     def _tick(self, t: float) -> int:
-        """Compute and publish the command and the state; returns when the command was
-        published [ns, system clock], or -1 when a non-finite torque was computed: then
-        nothing is published (the plant keeps its last command, then its timeout acts)."""
+        """Step the controller and publish the command and the state; returns when the
+        command was published [ns, system clock], or -1 when a non-finite torque was
+        computed: then nothing is published (the plant keeps its last command, then its
+        timeout acts)."""
         with self._lock:
-            q, dq = self._q, self._dq
-            dt = 0.0 if self._t_last is None else min(max(t - self._t_last, 0.0), MAX_DT)
-            self._t_last = t
-            ref = self._sample(t)
-            split = self.compute(q, dq, ref, dt)
-            unclamped = split.total
-            if not np.isfinite(unclamped).all():
+            designing = self.core.gains_pending
+            step = self.core.step(t, self._q, self._dq)
+            if step.tau is None:
                 self.counts["dropped.nonfinite_torques"] += 1
                 self.get_logger().error(
-                    f"non-finite torque {unclamped} at t={t:.4f} s (q={q}, q̇={dq}): "
-                    "no command sent",
+                    f"non-finite torque {step.unclamped} at t={t:.4f} s (q={self._q}, "
+                    f"q̇={self._dq}): no command sent",
                     throttle_duration_sec=1.0,
                 )
-                self._t_last = None  # integrate nothing across the gap
                 return -1
-            cmd = self._command
-            tau = np.clip(unclamped, self._lowest_effort, self.effort_limits, out=cmd.effort)
-            cmd.set_stamp(self._state_ns)
-            self._command_bytes = cmd.to_bytes()
+            listening = self._state_pub.get_subscription_count() > 0  # else: nothing to build
+            fill_images(
+                self._command,
+                self._state if listening else None,
+                self._state_ns,
+                self._q,
+                self._dq,
+                step,
+            )
+            self._command_bytes = self._command.to_bytes()
             self._pub.publish(self._command_bytes)
             sent = time.time_ns()
             self._answered_ns = self._state_ns
-            if self._state_pub.get_subscription_count():  # nobody listening: nothing to build
-                data = self._state.data
-                data[0] = self._state_ns * 1e-9
-                np.concatenate(
-                    (
-                        ref.q,
-                        ref.dq,
-                        ref.ddq,
-                        q,
-                        dq,
-                        ref.q - q,
-                        ref.dq - dq,
-                        split.feedback,
-                        split.model,
-                        split.gravity,
-                        unclamped,
-                        tau,
-                    ),
-                    out=data[1:],
-                )
+            if listening:
                 self._state_pub.publish(self._state.to_bytes())
-            self.after_command(ref, q, unclamped, dt)
+        if designing:  # gains designed at the first measured configuration
+            self.get_logger().info(f"gains {self._gains_text()} at q0={self.core.q0.tolist()}")
+            self._publish_config(self._values)
         return sent
+
+
+def fill_images(
+    command: JointStateImage,
+    state: Float64ArrayImage | None,
+    stamp_ns: int,
+    q: np.ndarray,
+    dq: np.ndarray,
+    step: Step,
+) -> None:
+    """Write a step into the command image (effort, stamp of the state it answers) and, when
+    given, the ``~/state`` image (README "Controller state": q_d, q̇_d, q̈_d, q, q̇, e, ė,
+    τ feedback/model/gravity, τ before and after clamping)."""
+    command.effort[:] = step.tau
+    command.set_stamp(stamp_ns)
+    if state is None:
+        return
+    ref, split = step.ref, step.split
+    data = state.data
+    data[0] = stamp_ns * 1e-9
+    np.concatenate(
+        (
+            ref.q,
+            ref.dq,
+            ref.ddq,
+            q,
+            dq,
+            ref.q - q,
+            ref.dq - dq,
+            split.feedback,
+            split.model,
+            split.gravity,
+            step.unclamped,
+            step.tau,
+        ),
+        out=data[1:],
+    )

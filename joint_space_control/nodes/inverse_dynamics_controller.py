@@ -15,42 +15,25 @@ changed while the node runs.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
-from joint_space_control.laws.gains import GainChoice, PDGains, inverse_dynamics_gains
-from joint_space_control.laws.inverse_dynamics import (
-    LAWS,
-    ModelLaw,
-    precomputed_feedforward,
-    reference_feedforward,
+from joint_space_control.control.inverse_dynamics import (
+    IDConfig,
+    InverseDynamicsController,
+    gains_from_choice,
 )
-from joint_space_control.laws.split import TorqueSplit
+from joint_space_control.laws.inverse_dynamics import ModelLaw
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.controller_base import JointController
 from joint_space_control.nodes.node_main import run_node
-from joint_space_control.trajectories.reference import Sample
 
 
-@dataclass(frozen=True)
-class IDConfig:
-    model: RobotModel
-    gains: PDGains
-    law: ModelLaw
-    choice: GainChoice
+class InverseDynamicsControllerNode(JointController):
+    """The ROS wrapper of
+    :class:`~joint_space_control.control.inverse_dynamics.InverseDynamicsController`."""
 
-
-def gains_from_choice(choice: GainChoice, n: int) -> PDGains:
-    """K_P = ω_n², K_D = 2ζω_n from ω_n, ζ (given or the defaults), else ``kp``/``kd``."""
-    if choice.designed:
-        return inverse_dynamics_gains(choice.omega_n, choice.zeta, n)
-    return PDGains.build(n, choice.kp, choice.kd)
-
-
-class InverseDynamicsController(JointController):
+    CORE = InverseDynamicsController
     EXECUTABLE = "inverse_dynamics_controller"
     LAW_PARAMETERS = (
         params.ParamSpec(
@@ -61,8 +44,6 @@ class InverseDynamicsController(JointController):
     )
 
     def __init__(self, **kwargs: Any) -> None:
-        self._ff_key: tuple[RobotModel, bytes] | None = None
-        self._ff: np.ndarray | None = None
         super().__init__(self.EXECUTABLE, **kwargs)
 
     def build_config(self, values: dict[str, Any], model: RobotModel) -> IDConfig:
@@ -74,25 +55,9 @@ class InverseDynamicsController(JointController):
     def law_name(self, config: IDConfig) -> str:
         return config.law.value
 
-    def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
-        config = self.config
-        if config.law is ModelLaw.PRECOMPUTED_FEEDFORWARD:
-            return precomputed_feedforward(
-                config.model, q, dq, ref, config.gains, self._feedforward(config.model, ref)
-            )
-        return LAWS[config.law](config.model, q, dq, ref, config.gains)
-
-    def _feedforward(self, model: RobotModel, ref: Sample) -> np.ndarray:
-        """The reference's feedforward, computed once per distinct reference sample (a
-        set-point or a hold needs it once)."""
-        key = (model, np.concatenate((ref.q, ref.dq, ref.ddq)).tobytes())  # holds the model
-        if key != self._ff_key:
-            self._ff, self._ff_key = reference_feedforward(model, ref), key
-        return self._ff
-
 
 def main(args: list[str] | None = None) -> None:
-    run_node(InverseDynamicsController, args)
+    run_node(InverseDynamicsControllerNode, args)
 
 
 if __name__ == "__main__":

@@ -166,6 +166,12 @@ class Reference:
         return cls(Trajectory.build(start, [0.0], q[None, :]), Sample(q, zero, zero))
 
     @property
+    def end(self) -> float:
+        """Time of the last knot after the trajectory's start [s]: from then on the sample
+        is the last point at rest."""
+        return float(self._t[-1])
+
+    @property
     def knots(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(times after the start [s], q, q̇, q̈) at the knots the segments join (read-only)."""
         return self._t, self._p, self._v, self._a

@@ -18,11 +18,10 @@ non-increasing time, arbitrary bytes).
 
 from __future__ import annotations
 
-import collections
 import functools
 import math
 import string
-import threading
+import types
 
 import numpy as np
 import pinocchio as pin
@@ -35,6 +34,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from joint_space_control.control.controller import Controller
 from joint_space_control.laws.gains import PDGains
 from joint_space_control.laws.inverse_dynamics import (
     LAWS,
@@ -49,7 +49,7 @@ from joint_space_control.laws.pd_gravity import (
 from joint_space_control.laws.split import TorqueSplit
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.nodes.controller_base import JointController
+from joint_space_control.nodes.controller_base import fill_images
 from joint_space_control.nodes.messages import (
     STATE_FIELDS,
     JointOrder,
@@ -645,54 +645,31 @@ def test_inverse_dynamics_is_pinocchio_rnea_of_the_commanded_acceleration(state)
     assert close(split.total, expected, split.feedback, split.model, split.gravity)
 
 
-class _Publisher:
-    def __init__(self) -> None:
-        self.sent: list[bytes] = []
+class _Fixed(Controller):
+    """The controller core with a given reference sample and torque split (no ROS graph):
+    what is checked is the step's gate and clamp, then the node's message images."""
 
-    def publish(self, raw: bytes) -> None:
-        self.sent.append(raw)
-
-    def get_subscription_count(self) -> int:
-        return 1  # someone listens: ~/state is built too
-
-
-class _Tick:
-    """What JointController._tick reads, around the real method (no ROS graph)."""
-
-    _tick = JointController._tick
-
-    def __init__(self, joints, limits, q, dq, ref: Sample, split: TorqueSplit) -> None:
-        n = len(joints)
-        self.effort_limits = limits
-        self._lowest_effort = -limits  # as JointController.__init__ sets it
-        self._lock = threading.Lock()
-        self._q, self._dq, self._t_last, self._state_ns = q, dq, None, 1_500_000_000
-        self._command = JointStateImage(joints, (0, 0, n))
-        self._command_bytes = b""
-        self._state = Float64ArrayImage(state_message(joints), 1 + len(STATE_FIELDS) * n)
-        self._pub, self._state_pub = _Publisher(), _Publisher()
-        self._answered_ns = -1
-        self.counts: collections.Counter[str] = collections.Counter()
-        self.logged: list[str] = []
+    def __init__(self, limits, ref: Sample, split: TorqueSplit) -> None:
+        super().__init__(types.SimpleNamespace(gains="given"), limits)
         self._ref, self._split = ref, split
 
-    def get_logger(self):
-        tick = self
-
-        class Logger:
-            def error(self, text: str, **kwargs) -> None:
-                tick.logged.append(text)
-
-        return Logger()
-
-    def _sample(self, t: float) -> Sample:
+    def sample(self, t: float, q) -> Sample:
         return self._ref
 
     def compute(self, q, dq, ref, dt) -> TorqueSplit:
         return self._split
 
-    def after_command(self, ref, q, tau_unclamped, dt) -> None:
-        pass
+
+def published(joints, limits, q, dq, ref: Sample, split: TorqueSplit):
+    """The command and ``~/state`` bytes a node sends for one step (None: nothing sent)."""
+    n = len(joints)
+    step = _Fixed(limits, ref, split).step(1.5, q, dq)
+    if step.tau is None:
+        return None
+    command = JointStateImage(joints, (0, 0, n))
+    state = Float64ArrayImage(state_message(joints), 1 + len(STATE_FIELDS) * n)
+    fill_images(command, state, 1_500_000_000, q, dq, step)
+    return command.to_bytes(), state.to_bytes()
 
 
 @settings(max_examples=60, deadline=None)
@@ -715,16 +692,13 @@ def test_published_command_never_exceeds_the_effort_limits(state, law, scale, da
         limits = np.array(
             [data.draw(st.one_of(st.floats(1e-3, 1e4), st.just(math.inf))) for _ in limits]
         )
-    tick = _Tick(model.joint_names, limits, q, dq, ref, split)
-    tick._tick(1.5)
-    (raw,) = tick._pub.sent
+    raw, state_raw = published(model.joint_names, limits, q, dq, ref, split)
     tau = np.array(deserialize_message(raw, JointState).effort)
     unclamped = split.total
     assert np.all(np.abs(tau) <= limits)
     within = np.abs(unclamped) <= limits
     assert np.array_equal(tau[within], unclamped[within])  # untouched where allowed
     assert np.array_equal(tau[~within], np.copysign(limits, unclamped)[~within])
-    (state_raw,) = tick._state_pub.sent
     rows = np.array(deserialize_message(state_raw, Float64MultiArray).data[1:]).reshape(
         len(STATE_FIELDS), -1
     )
@@ -748,7 +722,8 @@ def test_a_non_finite_torque_is_never_published(state, part, bad, data):
     values = getattr(split, part).copy()
     values[data.draw(st.integers(0, model.n - 1))] = bad
     split = TorqueSplit(**{**vars(split), part: values})
-    tick = _Tick(model.joint_names, model.effort_limits, q, dq, ref, split)
-    assert tick._tick(1.5) == -1
-    assert tick._pub.sent == [] and tick._state_pub.sent == []
-    assert tick.counts["dropped.nonfinite_torques"] == 1 and len(tick.logged) == 1
+    core = _Fixed(model.effort_limits, ref, split)
+    step = core.step(1.5, q, dq)
+    assert step.tau is None  # nothing to publish
+    assert published(model.joint_names, model.effort_limits, q, dq, ref, split) is None
+    assert core._t_last is None  # nothing integrated across the gap
