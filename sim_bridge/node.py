@@ -70,7 +70,7 @@ from sim_bridge import pacing
 from sim_bridge.plant import Plant
 
 MODES = ("realtime", "lockstep")
-#: The safety counters of the plant (on /diagnostics; README "Safety").
+#: The safety counters of the plant (on /diagnostics; docs/safety.md).
 COUNTERS = ("rejected.commands", "brake.engaged")
 #: Recent states whose publication time is kept for the command latency (realtime).
 SENT_HISTORY = 64

@@ -26,7 +26,7 @@ variants:                                  # optional: one run per value (a swee
 checks: [...]                              # theory checks, see experiments/checks.py
 ```
 
-Parameter names are the nodes' own (README); a scenario is checked here for structure and
+Parameter names are the nodes' own (docs/parameters.md); a scenario is checked here for structure and
 the values by the nodes when they start, as any parameter file would be.
 """
 

@@ -75,7 +75,7 @@ from joint_space_control.nodes.plant_mode import PlantModeWatcher
 from joint_space_control.nodes.wire import Float64ArrayImage, JointStateImage, JointStateReader
 
 TRIGGERS = ("auto", "timer", "state")
-#: The safety counters of a controller (on /diagnostics; README "Safety").
+#: The safety counters of a controller (on /diagnostics; docs/safety.md).
 COUNTERS = (
     "rejected.joint_states",
     "rejected.references",
@@ -220,7 +220,7 @@ class JointController(Node):
         self._command_bytes = b""
         self._state = Float64ArrayImage(state_message(self.joints), 1 + len(STATE_FIELDS) * self.n)
         self._silent = False
-        # Safety counters, on /diagnostics (README "Safety").
+        # Safety counters, on /diagnostics (docs/safety.md).
         self.counts = dict.fromkeys(COUNTERS, 0)
         self._nominal_ns = round(1e9 / rate) if self.trigger == "timer" else -1
         self._timer = None
