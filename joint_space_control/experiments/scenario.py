@@ -26,8 +26,8 @@ variants:                                  # optional: one run per value (a swee
 checks: [...]                              # theory checks, see experiments/checks.py
 ```
 
-Parameter names are the nodes' own (docs/parameters.md); a scenario is checked here for structure and
-the values by the nodes when they start, as any parameter file would be.
+Parameter names are the nodes' own (docs/parameters.md); a scenario is checked here for
+structure and the values by the nodes when they start, as any parameter file would be.
 """
 
 from __future__ import annotations
