@@ -11,26 +11,19 @@ A constant torque u (the iterative gravity estimate u_i) can be added to any mod
 
 from __future__ import annotations
 
-from enum import StrEnum
-
 import numpy as np
 
+from joint_space_control.enums import ParsedEnum
 from joint_space_control.laws.gains import PDGains
 from joint_space_control.laws.split import TorqueSplit
 
 
-class GravityCompensation(StrEnum):
+class GravityCompensation(
+    ParsedEnum, invalid="gravity_compensation '{value}' is not one of: {allowed}"
+):
     FULL = "full"
     NONE = "none"
     DESIRED = "desired"
-
-    @classmethod
-    def parse(cls, value: str) -> GravityCompensation:
-        try:
-            return cls(value)
-        except ValueError:
-            names = ", ".join(m.value for m in cls)
-            raise ValueError(f"gravity_compensation '{value}' is not one of: {names}") from None
 
 
 def pd_gravity_torque(
