@@ -18,8 +18,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from joint_space_control.analysis.figures import controller_figures
 from joint_space_control.analysis.report import write_metrics, write_report
 from joint_space_control.analysis.run_metrics import analyze_bag
@@ -179,7 +177,3 @@ def _set(loop: ClosedLoop, node: str, values: dict[str, Any]) -> None:
     failed = [f"{k}: {r.reason}" for k, r in zip(values, results, strict=True) if not r.successful]
     if failed:
         raise RuntimeError(f"{node} rejected " + "; ".join(failed))
-
-
-def final_q(result: RunResult) -> np.ndarray:
-    return np.array(result.events[-1]["q"])

@@ -26,13 +26,6 @@ class GravityCompensation(
     DESIRED = "desired"
 
 
-def pd_gravity_torque(
-    q: np.ndarray, dq: np.ndarray, q_des: np.ndarray, gains: PDGains, gravity: np.ndarray
-) -> np.ndarray:
-    r"""PD with gravity compensation, τ = ĝ + K_P (q_d − q) − K_D q̇  [N·m]."""
-    return gravity + gains.kp * (q_des - q) - gains.kd * dq
-
-
 def pid_torque_split(
     q: np.ndarray,
     dq: np.ndarray,

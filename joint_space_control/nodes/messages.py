@@ -150,13 +150,6 @@ def float_array(msg: Float64MultiArray, size: int) -> np.ndarray:
     return _field(msg.data, size, "command")
 
 
-def make_joint_state(joints: Sequence[str]) -> JointState:
-    """A reusable JointState with the names filled in."""
-    msg = JointState()
-    msg.name = list(joints)
-    return msg
-
-
 def trajectory_from_msg(
     msg: JointTrajectory,
     order: JointOrder,
