@@ -21,7 +21,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from joint_space_control.bench import compute, machine
+from joint_space_control import machine
+from joint_space_control.bench import compute
 from joint_space_control.json_values import jsonable
 
 SECTIONS = ("compute", "in_process", "pingpong", "lockstep", "realtime", "analyze")

@@ -214,7 +214,7 @@ def run(
     out: Path, options: SoakOptions = SoakOptions(), log: Callable[[str], None] = print
 ) -> dict[str, Any]:
     """Run the soak, write ``out/soak.json`` and return the report (with its verdict)."""
-    from joint_space_control.bench.machine import StealMeter, machine, versions
+    from joint_space_control.machine import StealMeter, machine, versions
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
