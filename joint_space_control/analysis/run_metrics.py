@@ -35,6 +35,7 @@ from joint_space_control.analysis.bag import (
     read_controller_bag,
 )
 from joint_space_control.json_values import jsonable
+from joint_space_control.laws.second_order import gains_to_second_order
 
 CONSTANT_TOL = 1e-12
 """Relative tolerance (on max(1, |q_d|)) under which q_d is constant between two samples."""
@@ -306,7 +307,7 @@ def _by_joint(joints: Sequence[str], values) -> dict[str, float]:
 
 
 def _second_order(kp: np.ndarray, kd: np.ndarray) -> dict[str, np.ndarray]:
-    omega_n, zeta = metrics.gains_to_second_order(kp, kd)
+    omega_n, zeta = gains_to_second_order(kp, kd)
     return {"kp": kp, "kd": kd, **metrics.second_order_prediction(omega_n, zeta)}
 
 
