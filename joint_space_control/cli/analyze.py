@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -13,6 +14,20 @@ from joint_space_control.analysis.report import fmt
 
 PROGRESS_MIN_MESSAGES = 20_000
 """Bags with fewer messages to read show no progress."""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``jsc analyze``."""
+    p = subparsers.add_parser(
+        "analyze",
+        help="analyse a recorded rosbag2 bag: metrics.json, figures and report.md",
+    )
+    p.add_argument("bag", type=Path, help="rosbag2 directory (metadata.yaml + .mcap/.db3)")
+    p.add_argument(
+        "--out", type=Path, default=None, help="output directory (default: <BAG>_report)"
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress display on stderr")
+    p.set_defaults(handler=lambda args: run(args.bag, args.out, args.quiet))
 
 
 def default_out(bag: Path) -> Path:

@@ -4,6 +4,7 @@ is recorded to a bag and analysed into a report, as a user would with the record
 
 from __future__ import annotations
 
+import argparse
 import shutil
 import sys
 from pathlib import Path
@@ -17,6 +18,24 @@ from joint_space_control.paths import config_file
 
 JOINTS = ["joint1", "joint2"]
 SETPOINT = [0.5, -0.3]
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``jsc demo``."""
+    p = subparsers.add_parser(
+        "demo",
+        help="run the default closed loop (planar_2dof, PD + g(q), "
+        "a step) headless and write its results",
+    )
+    p.add_argument("--out", type=Path, default=Path("out/demo"), help="output directory")
+    p.add_argument("--duration", type=float, default=4.0, help="simulated time [s]")
+    p.add_argument(
+        "--domain-id",
+        type=int,
+        default=None,
+        help="ROS domain for the run (default: one no other run on this machine uses)",
+    )
+    p.set_defaults(handler=lambda args: run(args.out, args.duration, args.domain_id))
 
 
 def _params(name: str) -> dict:
