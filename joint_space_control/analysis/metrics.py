@@ -9,9 +9,10 @@ joint), torques in N·m (N for a prismatic joint), percentages in %.
 - :func:`tracking_error`: RMS and peak of e = q_d − q;
 - :func:`torque_demand`: peak |τ|, peak |τ̇|, fraction of time at the torque limit;
 - :func:`period_statistics`: timing of a periodic loop from its time stamps;
-- :func:`second_order_step`, :func:`second_order_prediction`, :func:`gains_to_second_order`:
-  the analytic answer for the nominal inverse-dynamics loop ë + K_D ė + K_P e = 0, where each
-  joint follows G(s) = ω_n² / (s² + 2ζω_n s + ω_n²), ω_n = √K_P, ζ = K_D / (2√K_P).
+- :func:`second_order_step`, :func:`second_order_prediction`: the analytic answer for the
+  nominal inverse-dynamics loop ë + K_D ė + K_P e = 0, where each joint follows
+  G(s) = ω_n² / (s² + 2ζω_n s + ω_n²), ω_n = √K_P, ζ = K_D / (2√K_P) (the gains ↔ (ω_n, ζ)
+  conversion is :mod:`joint_space_control.laws.second_order`).
 
 Sampled step metrics are measured on the samples themselves with linear interpolation between
 two samples to place a crossing instant; they therefore cannot see an excursion that lies
@@ -28,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from joint_space_control.arrays import per_joint
+from joint_space_control.laws.second_order import second_order_parameters
 
 RISE_LOW = 0.1
 """Lower level of the rise time, as a fraction of the step."""
@@ -402,40 +404,6 @@ def period_statistics(stamps: ArrayLike) -> dict[str, float]:
 # --------------------------------------------------------------------------- second order
 
 
-def gains_to_second_order(kp: ArrayLike, kd: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """(ω_n [rad/s], ζ) of ë + K_D ė + K_P e = 0: ω_n = √K_P, ζ = K_D / (2√K_P).
-
-    K_P [1/s²] > 0 and K_D [1/s] ≥ 0 are the (diagonal) gains of the inverse-dynamics outer
-    loop, THEORY.md §3 eq. 15; arrays broadcast together.
-    """
-    kp = np.asarray(kp, dtype=float)
-    kd = np.asarray(kd, dtype=float)
-    if not (np.all(np.isfinite(kp)) and np.all(np.isfinite(kd))):
-        raise ValueError("'kp' and 'kd' must be finite")
-    if np.any(kp <= 0.0) or np.any(kd < 0.0):
-        raise ValueError(f"need kp > 0 and kd >= 0, got kp={kp.tolist()}, kd={kd.tolist()}")
-    omega_n = np.sqrt(kp)
-    return omega_n, kd / (2.0 * omega_n)
-
-
-def second_order_to_gains(omega_n: ArrayLike, zeta: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """(K_P, K_D) = (ω_n², 2ζω_n): the inverse of :func:`gains_to_second_order`."""
-    omega_n, zeta = _second_order_parameters(omega_n, zeta)
-    return omega_n**2, 2.0 * zeta * omega_n
-
-
-def _second_order_parameters(omega_n: ArrayLike, zeta: ArrayLike) -> tuple[np.ndarray, ...]:
-    omega_n = np.asarray(omega_n, dtype=float)
-    zeta = np.asarray(zeta, dtype=float)
-    if not (np.all(np.isfinite(omega_n)) and np.all(np.isfinite(zeta))):
-        raise ValueError("'omega_n' and 'zeta' must be finite")
-    if np.any(omega_n <= 0.0) or np.any(zeta < 0.0):
-        raise ValueError(
-            f"need omega_n > 0 and zeta >= 0, got omega_n={omega_n.tolist()}, zeta={zeta.tolist()}"
-        )
-    return omega_n, zeta
-
-
 def _unit_step(x: ArrayLike, zeta: ArrayLike) -> np.ndarray:
     r"""Unit step response s(x) of 1/(s² + 2ζs + 1) at normalised times x = ω_n t ≥ 0.
 
@@ -476,7 +444,7 @@ def second_order_step(
     ``omega_n`` [rad/s] > 0 and ``zeta`` ≥ 0 are scalars; t [s] has any shape, and so does
     the result (in the unit of y0, y1).
     """
-    omega_n, zeta = _second_order_parameters(float(omega_n), float(zeta))
+    omega_n, zeta = second_order_parameters(float(omega_n), float(zeta))
     t = np.asarray(t, dtype=float)
     x = np.maximum(omega_n * t, 0.0)
     return np.where(t < 0.0, y0, y0 + (y1 - y0) * _unit_step(x, zeta))
@@ -558,7 +526,7 @@ def second_order_prediction(omega_n: ArrayLike, zeta: ArrayLike) -> dict[str, np
     - ``settling_time_2_approx`` = 4/(ζω_n), ``settling_time_5_approx`` = 3/(ζω_n): the
       textbook envelope estimates (inf for ζ = 0), for comparison only.
     """
-    omega_n, zeta = _second_order_parameters(omega_n, zeta)
+    omega_n, zeta = second_order_parameters(omega_n, zeta)
     omega_n, zeta = (np.array(a, dtype=float) for a in np.broadcast_arrays(omega_n, zeta))
     omega_n, zeta = np.atleast_1d(omega_n), np.atleast_1d(zeta)
     under = zeta < 1.0

@@ -7,8 +7,7 @@ this module decides what to measure on a controller's recorded state
 - :func:`analyze_bag`: read a bag's controllers and measure each (the library entry point);
 - :func:`last_run`: the samples to analyse (after the last simulation reset, one per stamp);
 - :func:`step_segments`: where the reference steps, and which joints it moves;
-- :func:`controller_metrics`: every metric of one controller;
-- :func:`jsonable`: NaN/inf → None, numpy → Python, for ``json.dumps(allow_nan=False)``.
+- :func:`controller_metrics`: every metric of one controller.
 
 Units in the result: positions in rad (m for a prismatic joint), torques in N·m (N), times
 and durations in s, control periods in ms (key names ``*_ms``), percentages in %. Per-joint
@@ -35,6 +34,8 @@ from joint_space_control.analysis.bag import (
     controller_state,
     read_controller_bag,
 )
+from joint_space_control.json_values import jsonable
+from joint_space_control.laws.second_order import gains_to_second_order
 
 CONSTANT_TOL = 1e-12
 """Relative tolerance (on max(1, |q_d|)) under which q_d is constant between two samples."""
@@ -306,7 +307,7 @@ def _by_joint(joints: Sequence[str], values) -> dict[str, float]:
 
 
 def _second_order(kp: np.ndarray, kd: np.ndarray) -> dict[str, np.ndarray]:
-    omega_n, zeta = metrics.gains_to_second_order(kp, kd)
+    omega_n, zeta = gains_to_second_order(kp, kd)
     return {"kp": kp, "kd": kd, **metrics.second_order_prediction(omega_n, zeta)}
 
 
@@ -521,20 +522,3 @@ def controller_metrics(
         "warnings": list(dict.fromkeys(warnings)),
     }
     return jsonable(result)
-
-
-def jsonable(value):
-    """``value`` with numpy scalars/arrays as Python numbers/lists and NaN/inf as None."""
-    if isinstance(value, dict):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, np.bool_ | bool):
-        return bool(value)
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    return value

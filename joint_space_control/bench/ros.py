@@ -10,7 +10,6 @@ else, so the lockstep loop is exactly two processes exchanging messages.
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import time
@@ -276,10 +275,12 @@ def _controller(law: str) -> str:
 
 def analyze_time(workdir: Path, seconds: float, log: Callable[[str], None]) -> dict[str, Any]:
     """Record ``seconds`` of a lockstep run (planar_2dof, PD + g) with the recorder, then
-    time ``jsc analyze`` on the bag (metrics, figures, report)."""
+    time the ``jsc analyze`` pipeline on the bag (metrics, figures, report; without the
+    summary ``jsc analyze`` prints)."""
     import yaml
 
-    from joint_space_control.cli import analyze
+    from joint_space_control.analysis.bag import BagError
+    from joint_space_control.analysis.pipeline import ResultsWriteError, analyze_bag_to
     from joint_space_control.experiments.loop import ClosedLoop
 
     log(f"jsc analyze: recording {seconds:g} s of simulated time")
@@ -296,16 +297,12 @@ def analyze_time(workdir: Path, seconds: float, log: Callable[[str], None]) -> d
         loop.pause()
     meta = yaml.safe_load((bag / "metadata.yaml").read_text())
     messages = int(meta["rosbag2_bagfile_information"]["message_count"])
-    with open(os.devnull, "w") as sink:
-        stdout, sys.stdout = sys.stdout, sink
-        try:
-            t0 = time.perf_counter()
-            code = analyze.run(bag, workdir / "report", True)
-            elapsed = time.perf_counter() - t0
-        finally:
-            sys.stdout = stdout
-    if code != 0:
-        raise RuntimeError(f"jsc analyze failed with exit code {code}")
+    t0 = time.perf_counter()
+    try:
+        analyze_bag_to(workdir / "report", bag)  # no progress callback: quiet
+    except (BagError, ResultsWriteError) as err:
+        raise RuntimeError(f"jsc analyze failed: {err}") from err
+    elapsed = time.perf_counter() - t0
     return {
         "messages": messages,
         "seconds": elapsed,

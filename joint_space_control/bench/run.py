@@ -21,7 +21,9 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from joint_space_control.bench import compute, machine
+from joint_space_control import machine
+from joint_space_control.bench import compute
+from joint_space_control.json_values import jsonable
 
 SECTIONS = ("compute", "in_process", "pingpong", "lockstep", "realtime", "analyze")
 #: Not a section of its own: runs with ``realtime`` (the machine's floor for it).
@@ -174,7 +176,7 @@ def run(
     result["ratios"] = ratios(result)
     result["goals"] = goals(result)
     result["duration_s"] = time.monotonic() - started
-    (out / "bench.json").write_text(json.dumps(_plain(result), indent=2, allow_nan=False) + "\n")
+    (out / "bench.json").write_text(json.dumps(jsonable(result), indent=2, allow_nan=False) + "\n")
     table = format_table(result)
     (out / "bench.txt").write_text(table + "\n")
     return result
@@ -282,17 +284,6 @@ def goals(result: dict[str, Any]) -> list[dict[str, Any]]:
             lambda v: v <= 5000.0,
         ),
     ]
-
-
-def _plain(value: Any) -> Any:
-    """JSON-ready: NaN and infinities become null."""
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def _f(value: Any, digits: int = 0) -> str:

@@ -2,18 +2,32 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
 from typing import TextIO
 
 from joint_space_control.analysis.bag import BagError
-from joint_space_control.analysis.figures import controller_figures, file_prefix
-from joint_space_control.analysis.report import fmt, write_metrics, write_report
-from joint_space_control.analysis.run_metrics import analyze_bag
+from joint_space_control.analysis.pipeline import ResultsWriteError, analyze_bag_to
+from joint_space_control.analysis.report import fmt
 
 PROGRESS_MIN_MESSAGES = 20_000
 """Bags with fewer messages to read show no progress."""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``jsc analyze``."""
+    p = subparsers.add_parser(
+        "analyze",
+        help="analyse a recorded rosbag2 bag: metrics.json, figures and report.md",
+    )
+    p.add_argument("bag", type=Path, help="rosbag2 directory (metadata.yaml + .mcap/.db3)")
+    p.add_argument(
+        "--out", type=Path, default=None, help="output directory (default: <BAG>_report)"
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress display on stderr")
+    p.set_defaults(handler=lambda args: run(args.bag, args.out, args.quiet))
 
 
 def default_out(bag: Path) -> Path:
@@ -60,30 +74,15 @@ def run(bag: Path, out: Path | None = None, quiet: bool = False) -> int:
     started = time.perf_counter()
     progress = None if quiet else ProgressBar(sys.stderr)
     try:
-        analysis = analyze_bag(bag, progress)
-    except BagError as err:
+        result = analyze_bag_to(out, bag, progress)
+    except (BagError, ResultsWriteError) as err:
         if progress is not None:
             progress.finish()
         print(f"jsc analyze: error: {err}", file=sys.stderr)
-        return 2
+        return 2 if isinstance(err, BagError) else 1
     if progress is not None:
         progress.finish()
-    metrics = analysis.metrics
-    several = len(analysis.controllers) > 1
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        figures = {
-            c.metrics["node"]: controller_figures(
-                c.state, c.metrics, out, file_prefix(c.metrics["node"]) if several else ""
-            )
-            for c in analysis.controllers
-        }
-        write_metrics(metrics, out / "metrics.json")
-        report = write_report(metrics, figures, out)
-    except OSError as err:
-        print(f"jsc analyze: error: cannot write the results to {out}: {err}", file=sys.stderr)
-        return 1
-    _summary(metrics, report, time.perf_counter() - started)
+    _summary(result.metrics, result.report_path, time.perf_counter() - started)
     return 0
 
 

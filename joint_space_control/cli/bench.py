@@ -2,14 +2,36 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
-from joint_space_control.bench.run import SECTIONS, Options, format_table
-from joint_space_control.bench.run import run as run_bench
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``jsc bench``."""
+    p = subparsers.add_parser(
+        "bench",
+        help="measure the control loop: law compute, lockstep over ROS 2 vs ping-pong and "
+        "in-process, realtime 1 kHz, jsc analyze; prints a table, writes bench.json",
+    )
+    p.add_argument("--out", type=Path, default=Path("out/bench"), help="output dir")
+    p.add_argument("--quick", action="store_true", help="short runs (< 1 min in all)")
+    p.add_argument(
+        "--sections", type=lambda s: s.split(","), default=None, help="comma-separated subset"
+    )
+    p.add_argument(
+        "--realtime-seconds", type=float, default=None, help="realtime run length [s] (30)"
+    )
+    p.set_defaults(
+        handler=lambda args: run(args.out, args.quick, args.sections, args.realtime_seconds)
+    )
 
 
 def run(out: Path, quick: bool, sections: list[str] | None, realtime_seconds: float | None) -> int:
+    # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
+    from joint_space_control.bench.run import SECTIONS, Options, format_table
+    from joint_space_control.bench.run import run as run_bench
+
     sections = sections or list(SECTIONS)
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:

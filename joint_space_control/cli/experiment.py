@@ -2,17 +2,38 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
 
 from joint_space_control.experiments import scenario as scenarios
-from joint_space_control.experiments.experiment import (
-    ExperimentResult,
-    results_page,
-    run_experiment,
-)
-from joint_space_control.experiments.runner import stop_all_runs
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``jsc experiment``."""
+    p = subparsers.add_parser(
+        "experiment",
+        help="run scenarios of THEORY.md §5 end to end (nodes, bag, analysis, theory checks)",
+    )
+    p.add_argument("names", nargs="*", help="scenario names or YAML files")
+    p.add_argument("--list", action="store_true", help="list the installed scenarios")
+    p.add_argument("--all", action="store_true", help="run every installed scenario")
+    p.add_argument("--out", type=Path, default=Path("out/experiments"), help="output dir")
+    p.add_argument(
+        "--short", action="store_true", help="CI form: short durations, first and last variant"
+    )
+    p.add_argument("--jobs", type=int, default=2, help="variants run in parallel")
+    p.add_argument(
+        "--report", type=Path, default=None, help="also write DIR/results.md (e.g. docs/)"
+    )
+    p.set_defaults(handler=_handle)
+
+
+def _handle(args: argparse.Namespace) -> int:
+    if args.list:
+        return list_scenarios()
+    return run(args.names, args.all, args.out, args.short, args.jobs, args.report)
 
 
 def list_scenarios() -> int:
@@ -39,6 +60,14 @@ def run(
     jobs: int,
     report: Path | None,
 ) -> int:
+    # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
+    from joint_space_control.experiments.experiment import (
+        ExperimentResult,
+        results_page,
+        run_experiment,
+    )
+    from joint_space_control.experiments.runner import stop_all_runs
+
     if run_all:
         names = list(scenarios.available())
     if not names:

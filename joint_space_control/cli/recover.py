@@ -2,14 +2,29 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
-from joint_space_control.recording.recover import RecoveryError, recover
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``jsc recover``."""
+    p = subparsers.add_parser(
+        "recover",
+        help="rewrite what is readable of a bag whose recorder was killed into a complete bag",
+    )
+    p.add_argument("bag", type=Path, help="rosbag2 directory (or its .mcap/.db3 file)")
+    p.add_argument(
+        "--out", type=Path, default=None, help="new bag directory (default: <BAG>_recovered)"
+    )
+    p.set_defaults(handler=lambda args: run(args.bag, args.out))
 
 
 def run(bag: Path, out: Path | None) -> int:
     """Recover ``bag`` into ``out``; 0 on success, 2 (one error line) when nothing can be."""
+    # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
+    from joint_space_control.recording.recover import RecoveryError, recover
+
     try:
         result = recover(bag, out)
     except RecoveryError as err:

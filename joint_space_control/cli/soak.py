@@ -3,13 +3,30 @@ prints the figures and the verdict, writes soak.json (wiring and printing only).
 
 from __future__ import annotations
 
+import argparse
 import math
 import sys
 from pathlib import Path
 from typing import Any
 
-from joint_space_control.experiments.soak import CONTROLLERS, SoakOptions
-from joint_space_control.experiments.soak import run as run_soak
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``jsc soak``."""
+    p = subparsers.add_parser(
+        "soak",
+        help="soak run: realtime 1 kHz loop for minutes, gains changed every second; memory "
+        "growth, command safety, parameter updates; writes soak.json, non-zero exit on fail",
+    )
+    p.add_argument("--minutes", type=float, default=10.0, help="run length [min] (10)")
+    p.add_argument("--robot", default="iiwa", help="built-in robot (iiwa)")
+    p.add_argument(
+        "--controller",
+        choices=("inverse_dynamics", "pd_gravity"),
+        default="inverse_dynamics",
+        help="controller law (inverse_dynamics)",
+    )
+    p.add_argument("--out", type=Path, default=Path("out/soak"), help="output dir")
+    p.set_defaults(handler=lambda args: run(args.out, args.minutes, args.robot, args.controller))
 
 
 def _num(value: Any, fmt: str = "{:.0f}") -> str:
@@ -86,6 +103,10 @@ def format_report(report: dict[str, Any]) -> str:
 
 
 def run(out: Path, minutes: float, robot: str, law: str) -> int:
+    # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
+    from joint_space_control.experiments.soak import CONTROLLERS, SoakOptions
+    from joint_space_control.experiments.soak import run as run_soak
+
     if law not in CONTROLLERS:
         print(f"jsc soak: error: unknown controller '{law}'", file=sys.stderr)
         return 2

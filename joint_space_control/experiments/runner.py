@@ -18,11 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from joint_space_control.analysis.figures import controller_figures
-from joint_space_control.analysis.report import write_metrics, write_report
-from joint_space_control.analysis.run_metrics import analyze_bag
+from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
 from joint_space_control.experiments.loop import ClosedLoop
 from joint_space_control.experiments.scenario import Scenario, build_reference
@@ -127,16 +123,7 @@ def run_once(scenario: Scenario, out: Path, short: bool, result: RunResult) -> N
             with _active_lock:
                 _active.discard(loop)
     (out / "events.json").write_text(json.dumps(result.events, indent=1))
-    analysis = analyze_bag(bag)
-    report = out / "report"
-    report.mkdir(exist_ok=True)
-    figures = {
-        c.metrics["node"]: controller_figures(c.state, c.metrics, report, "")
-        for c in analysis.controllers
-    }
-    write_metrics(analysis.metrics, report / "metrics.json")
-    write_report(analysis.metrics, figures, report)
-    result.metrics = analysis.metrics
+    result.metrics = analyze_bag_to(out / "report", bag).metrics
 
 
 def _drive(loop: ClosedLoop, scenario: Scenario, duration: float, result: RunResult) -> None:
@@ -179,7 +166,3 @@ def _set(loop: ClosedLoop, node: str, values: dict[str, Any]) -> None:
     failed = [f"{k}: {r.reason}" for k, r in zip(values, results, strict=True) if not r.successful]
     if failed:
         raise RuntimeError(f"{node} rejected " + "; ".join(failed))
-
-
-def final_q(result: RunResult) -> np.ndarray:
-    return np.array(result.events[-1]["q"])

@@ -54,6 +54,7 @@ from joint_space_control.analysis.soak_metrics import (
 from joint_space_control.experiments.client import RosClient
 from joint_space_control.experiments.domains import lease_domain
 from joint_space_control.experiments.processes import ProcessGroup
+from joint_space_control.json_values import jsonable
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.nodes.control_path import ControlPath
@@ -213,7 +214,7 @@ def run(
     out: Path, options: SoakOptions = SoakOptions(), log: Callable[[str], None] = print
 ) -> dict[str, Any]:
     """Run the soak, write ``out/soak.json`` and return the report (with its verdict)."""
-    from joint_space_control.bench.machine import StealMeter, machine, versions
+    from joint_space_control.machine import StealMeter, machine, versions
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -309,7 +310,7 @@ def run(
     criteria = verdict(report, options.thresholds)
     report["criteria"] = [{"name": c.name, "met": c.met, "detail": c.detail} for c in criteria]
     report["passed"] = passed(criteria)
-    (out / "soak.json").write_text(json.dumps(_plain(report), indent=2) + "\n")
+    (out / "soak.json").write_text(json.dumps(jsonable(report), indent=2) + "\n")
     return report
 
 
@@ -450,16 +451,3 @@ def _source() -> dict[str, Any] | None:
         return None
     changed = [line[3:] for line in status.stdout.splitlines()]
     return {"commit": commit.stdout.strip(), "changed_files": changed}
-
-
-def _plain(value: Any) -> Any:
-    """Strict JSON: NumPy values as Python ones, NaN and infinities as null."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple | np.ndarray):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from joint_space_control.analysis.metrics import second_order_to_gains
 from joint_space_control.arrays import nonnegative
+from joint_space_control.laws.second_order import second_order_to_gains
 
 
 @dataclass(frozen=True)

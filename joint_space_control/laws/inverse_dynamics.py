@@ -19,28 +19,19 @@ B̂(q)(K_D ė + K_P e)), ``model`` the rest of the model's feedforward without g
 
 from __future__ import annotations
 
-from enum import StrEnum
-
 import numpy as np
 
+from joint_space_control.enums import ParsedEnum
 from joint_space_control.laws.gains import PDGains
 from joint_space_control.laws.split import TorqueSplit
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.trajectories.reference import Sample
 
 
-class ModelLaw(StrEnum):
+class ModelLaw(ParsedEnum, invalid="'law' is {value!r}; allowed: {allowed}"):
     INVERSE_DYNAMICS = "inverse_dynamics"
     FEEDFORWARD_PD = "feedforward_pd"
     PRECOMPUTED_FEEDFORWARD = "precomputed_feedforward"
-
-    @classmethod
-    def parse(cls, value: str) -> ModelLaw:
-        try:
-            return cls(value)
-        except ValueError:
-            allowed = ", ".join(m.value for m in cls)
-            raise ValueError(f"'law' is {value!r}; allowed: {allowed}") from None
 
 
 def pd_acceleration(q: np.ndarray, dq: np.ndarray, ref: Sample, gains: PDGains) -> np.ndarray:

@@ -11,33 +11,19 @@ A constant torque u (the iterative gravity estimate u_i) can be added to any mod
 
 from __future__ import annotations
 
-from enum import StrEnum
-
 import numpy as np
 
+from joint_space_control.enums import ParsedEnum
 from joint_space_control.laws.gains import PDGains
 from joint_space_control.laws.split import TorqueSplit
 
 
-class GravityCompensation(StrEnum):
+class GravityCompensation(
+    ParsedEnum, invalid="gravity_compensation '{value}' is not one of: {allowed}"
+):
     FULL = "full"
     NONE = "none"
     DESIRED = "desired"
-
-    @classmethod
-    def parse(cls, value: str) -> GravityCompensation:
-        try:
-            return cls(value)
-        except ValueError:
-            names = ", ".join(m.value for m in cls)
-            raise ValueError(f"gravity_compensation '{value}' is not one of: {names}") from None
-
-
-def pd_gravity_torque(
-    q: np.ndarray, dq: np.ndarray, q_des: np.ndarray, gains: PDGains, gravity: np.ndarray
-) -> np.ndarray:
-    r"""PD with gravity compensation, τ = ĝ + K_P (q_d − q) − K_D q̇  [N·m]."""
-    return gravity + gains.kp * (q_des - q) - gains.kd * dq
 
 
 def pid_torque_split(

@@ -17,6 +17,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from trajectory_msgs.msg import JointTrajectory
 
+from joint_space_control.json_values import jsonable
 from joint_space_control.trajectories.reference import Trajectory
 
 #: Control topics: the newest sample is the only one that matters; reliable so that a
@@ -72,28 +73,10 @@ STATE_FIELDS = (
 )
 
 
-def _json_number(x: float) -> float | None:
-    return float(x) if np.isfinite(x) else None
-
-
 def config_message(description: dict[str, Any]) -> String:
     """``~/config``: the controller's configuration as one JSON object (README, "Controller
     configuration"); non-finite numbers (absent limits) become ``null``."""
-
-    def plain(value: Any) -> Any:
-        if hasattr(value, "tolist"):  # numpy arrays and scalars, array.array (parameters)
-            value = value.tolist()
-        if isinstance(value, dict):
-            return {str(k): plain(v) for k, v in value.items()}
-        if isinstance(value, list | tuple):
-            return [plain(v) for v in value]
-        if isinstance(value, float):
-            return _json_number(value)
-        if value is None or isinstance(value, bool | int | str):
-            return value
-        return str(value)
-
-    return String(data=json.dumps(plain(description), allow_nan=False))
+    return String(data=json.dumps(jsonable(description), allow_nan=False))
 
 
 def stamp_to_ns(stamp: Time) -> int:
@@ -165,13 +148,6 @@ def effort_arrays(msg: JointState, order: JointOrder) -> np.ndarray:
 def float_array(msg: Float64MultiArray, size: int) -> np.ndarray:
     """A ros2_control-style command: exactly ``size`` finite values in joint order."""
     return _field(msg.data, size, "command")
-
-
-def make_joint_state(joints: Sequence[str]) -> JointState:
-    """A reusable JointState with the names filled in."""
-    msg = JointState()
-    msg.name = list(joints)
-    return msg
 
 
 def trajectory_from_msg(

@@ -34,12 +34,12 @@ from joint_space_control.analysis.figures import (
 from joint_space_control.analysis.metrics import second_order_prediction
 from joint_space_control.analysis.run_metrics import (
     analyze_bag,
-    jsonable,
     last_run,
     step_segments,
 )
 from joint_space_control.cli.analyze import ProgressBar
 from joint_space_control.cli.main import main
+from joint_space_control.json_values import jsonable
 from tests.unit.bagfactory import (
     JOINT_STATE_TYPE,
     STATE_TYPE,

@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pytest
 
-from joint_space_control.analysis.metrics import gains_to_second_order
 from joint_space_control.laws.gains import (
     DEFAULT_OMEGA_N,
     DEFAULT_ZETA,
@@ -19,6 +18,7 @@ from joint_space_control.laws.gains import (
     inverse_dynamics_gains,
     pd_gains_from_second_order,
 )
+from joint_space_control.laws.second_order import gains_to_second_order
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.nodes.plant_mode import trigger_for

@@ -22,7 +22,6 @@ from joint_space_control.nodes.messages import (
     effort_arrays,
     float_array,
     joint_state_arrays,
-    make_joint_state,
     ns_to_stamp,
     stamp_to_ns,
     state_message,
@@ -167,12 +166,6 @@ def test_float_array():
         float_array(Float64MultiArray(data=[1.0, 2.0]), 3)
     with pytest.raises(ValueError, match="non-finite command"):
         float_array(Float64MultiArray(data=[1.0, math.inf, 3.0]), 3)
-
-
-def test_make_joint_state():
-    msg = make_joint_state(JOINTS)
-    assert list(msg.name) == list(JOINTS)
-    assert list(msg.position) == []
 
 
 # -- trajectories --------------------------------------------------------------------------

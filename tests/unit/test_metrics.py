@@ -12,16 +12,15 @@ from hypothesis import strategies as st
 
 from joint_space_control.analysis.metrics import (
     StepMetrics,
-    gains_to_second_order,
     period_statistics,
     second_order_prediction,
     second_order_step,
-    second_order_to_gains,
     step_metrics,
     step_metrics_per_joint,
     torque_demand,
     tracking_error,
 )
+from joint_space_control.laws.second_order import gains_to_second_order, second_order_to_gains
 
 DT = 1e-4  # [s] sampling of the synthetic step responses
 

@@ -1,4 +1,9 @@
-"""What a benchmark result was measured on: the machine and the software versions."""
+"""What a measurement was made on: the machine and the software versions.
+
+``jsc bench`` and ``jsc soak`` both report timings of a shared, possibly virtual machine;
+the numbers mean little without the CPU, its load, the CPU time the hypervisor stole and
+the versions that ran. Neither tool owns this description, so it lives below both.
+"""
 
 from __future__ import annotations
 
@@ -21,6 +26,7 @@ PACKAGES = {
 
 
 def cpu_model() -> str:
+    """The CPU's model name (/proc/cpuinfo), else what ``platform`` knows."""
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith("model name"):
@@ -31,6 +37,7 @@ def cpu_model() -> str:
 
 
 def machine() -> dict[str, Any]:
+    """CPU, cores (all and usable by this process), platform and load averages now."""
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
     return {
         "cpu": cpu_model(),
@@ -42,6 +49,7 @@ def machine() -> dict[str, Any]:
 
 
 def versions() -> dict[str, str]:
+    """Python, the ROS and numerical packages of :data:`PACKAGES`, the RMW in use."""
     out = {"python": sys.version.split()[0]}
     for shown, candidates in PACKAGES.items():
         for name in candidates:

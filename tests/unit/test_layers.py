@@ -1,0 +1,114 @@
+"""No module imports from a layer above its own (issue 13, item 5).
+
+The package is built in layers so that the maths can be used, tested and read without ROS,
+and the ROS layer without the tools built on it. The modules are parsed, not imported: every
+``import`` statement counts, including the ones inside functions (deferred imports are still
+dependencies).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGES = ("joint_space_control", "sim_bridge")
+
+# Low → high. A module may import from its own layer and the layers below it.
+# - arrays, paths, json_values, enums, machine: no knowledge of robots, control or ROS;
+# - model, laws, trajectories: the maths of the robot and the control laws;
+# - analysis, recording: bags and metrics (rosbags, matplotlib; no running ROS graph);
+# - nodes, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level package);
+# - experiments: closed loops of node processes, scenarios, the soak run;
+# - bench: measurements that drive the experiments' process machinery;
+# - cli: argument parsing that calls the layers below.
+LAYERS: tuple[tuple[str, ...], ...] = (
+    (
+        "joint_space_control.arrays",
+        "joint_space_control.paths",
+        "joint_space_control.json_values",
+        "joint_space_control.enums",
+        "joint_space_control.machine",
+    ),
+    (
+        "joint_space_control.model",
+        "joint_space_control.laws",
+        "joint_space_control.trajectories",
+        "joint_space_control.robots",
+    ),
+    ("joint_space_control.analysis", "joint_space_control.recording"),
+    ("joint_space_control.nodes", "sim_bridge"),
+    ("joint_space_control.experiments",),
+    ("joint_space_control.bench",),
+    ("joint_space_control.cli",),
+)
+
+
+def layer_of(module: str) -> int | None:
+    """Index in :data:`LAYERS` of ``module`` (a dotted name), None outside the packages."""
+    for level, prefixes in enumerate(LAYERS):
+        for prefix in prefixes:
+            if module == prefix or module.startswith(prefix + "."):
+                return level
+    return None
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def imported_modules(tree: ast.AST, module: str, is_package: bool) -> list[tuple[int, str]]:
+    """(line, dotted name) of every module ``tree`` imports, relative imports resolved;
+    ``from package import name`` counts as importing ``package.name``."""
+    found: list[tuple[int, str]] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = module.split(".")
+                anchor = anchor[: len(anchor) - node.level + (1 if is_package else 0)]
+                base = ".".join(anchor + ([base] if base else []))
+            found += [(node.lineno, f"{base}.{alias.name}") for alias in node.names]
+    return found
+
+
+def sources() -> list[Path]:
+    return sorted(p for package in PACKAGES for p in (ROOT / package).rglob("*.py"))
+
+
+def test_every_module_has_a_layer():
+    missing = [module_name(p) for p in sources() if layer_of(module_name(p)) is None]
+    # the package roots themselves hold nothing
+    assert [m for m in missing if m not in PACKAGES] == []
+
+
+@pytest.mark.parametrize("path", sources(), ids=lambda p: module_name(p))
+def test_no_import_from_a_layer_above(path: Path):
+    module = module_name(path)
+    own = layer_of(module)
+    if own is None:
+        return
+    tree = ast.parse(path.read_text(), str(path))
+    upward = []
+    for line, name in imported_modules(tree, module, path.name == "__init__.py"):
+        level = layer_of(name)
+        if level is not None and level > own:
+            upward.append(f"{path.relative_to(ROOT)}:{line} imports {name}")
+    assert upward == []
+
+
+def test_layer_walk_sees_deferred_and_relative_imports():
+    """The walk itself: an import inside a function and a relative import are both found."""
+    code = "def f():\n    from joint_space_control.cli import analyze\nfrom ..bench import run\n"
+    found = imported_modules(ast.parse(code), "joint_space_control.analysis.x", False)
+    assert sorted((name, layer_of(name)) for _, name in found) == [
+        ("joint_space_control.bench.run", 5),
+        ("joint_space_control.cli.analyze", 6),
+    ]
