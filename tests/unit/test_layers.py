@@ -19,6 +19,7 @@ PACKAGES = ("joint_space_control", "sim_bridge")
 # Low → high. A module may import from its own layer and the layers below it.
 # - arrays, paths, json_values, enums, machine: no knowledge of robots, control or ROS;
 # - model, laws, trajectories: the maths of the robot and the control laws;
+# - control: the controllers themselves (configuration, state, step), no ROS;
 # - analysis, recording: bags and metrics (rosbags, matplotlib; no running ROS graph);
 # - nodes, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level package);
 # - experiments: closed loops of node processes, scenarios, the soak run;
@@ -38,6 +39,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "joint_space_control.trajectories",
         "joint_space_control.robots",
     ),
+    ("joint_space_control.control",),
     ("joint_space_control.analysis", "joint_space_control.recording"),
     ("joint_space_control.nodes", "sim_bridge"),
     ("joint_space_control.experiments",),
@@ -109,6 +111,6 @@ def test_layer_walk_sees_deferred_and_relative_imports():
     code = "def f():\n    from joint_space_control.cli import analyze\nfrom ..bench import run\n"
     found = imported_modules(ast.parse(code), "joint_space_control.analysis.x", False)
     assert sorted((name, layer_of(name)) for _, name in found) == [
-        ("joint_space_control.bench.run", 5),
-        ("joint_space_control.cli.analyze", 6),
+        ("joint_space_control.bench.run", LAYERS.index(("joint_space_control.bench",))),
+        ("joint_space_control.cli.analyze", LAYERS.index(("joint_space_control.cli",))),
     ]
