@@ -28,7 +28,7 @@ Loop statistics go to ``/diagnostics`` once a second: per lockstep step or realt
 tick, the period, the work of the tick, the lateness against the wall-clock schedule
 (realtime) and the latency from publishing a state to receiving the command that answers it.
 Commands are served by a dedicated wait-set loop and states are published as serialized
-images (:mod:`joint_space_control.nodes.control_path`, :mod:`joint_space_control.nodes.wire`);
+images (:mod:`joint_space_control.ros.control_path`, :mod:`joint_space_control.ros.wire`);
 services, parameters and the republish timer run in a second thread, the realtime physics in
 a third, all under one lock.
 """
@@ -53,19 +53,19 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from joint_space_control.arrays import nonnegative, per_joint
-from joint_space_control.nodes import parameters as params
-from joint_space_control.nodes.control_path import ControlPath
-from joint_space_control.nodes.diagnostics import LoopDiagnostics
-from joint_space_control.nodes.loop_statistics import LoopStatistics
-from joint_space_control.nodes.messages import (
+from joint_space_control.ros import parameters as params
+from joint_space_control.ros.control_path import ControlPath
+from joint_space_control.ros.diagnostics import LoopDiagnostics
+from joint_space_control.ros.loop_statistics import LoopStatistics
+from joint_space_control.ros.messages import (
     CONTROL_PUBLISHER_QOS,
     CONTROL_QOS,
     JointOrder,
     effort_arrays,
     float_array,
 )
-from joint_space_control.nodes.node_main import run_node
-from joint_space_control.nodes.wire import JointStateImage, JointStateReader
+from joint_space_control.ros.node_main import run_node
+from joint_space_control.ros.wire import JointStateImage, JointStateReader
 from sim_bridge import pacing
 from sim_bridge.plant import Plant
 

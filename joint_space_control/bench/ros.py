@@ -3,7 +3,7 @@ and the realtime loop at 1 kHz. Every part runs in a leased ROS domain (no other
 machine sees it) and stops every process it starts, also on error or Ctrl-C.
 
 The loops are measured by the nodes themselves (their ``/diagnostics``, see
-:mod:`joint_space_control.nodes.loop_statistics`); the observer here subscribes to nothing
+:mod:`joint_space_control.ros.loop_statistics`); the observer here subscribes to nothing
 else, so the lockstep loop is exactly two processes exchanging messages.
 """
 
@@ -27,8 +27,8 @@ from joint_space_control.experiments.domains import lease_domain
 from joint_space_control.experiments.processes import ProcessGroup, isolated_env
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.nodes.diagnostics import DIAGNOSTICS_QOS, statuses
-from joint_space_control.nodes.messages import REFERENCE_QOS
+from joint_space_control.ros.diagnostics import DIAGNOSTICS_QOS, statuses
+from joint_space_control.ros.messages import REFERENCE_QOS
 
 #: Controller parameters per law: well damped at 1 kHz on both robots.
 CONTROLLER_PARAMS = {

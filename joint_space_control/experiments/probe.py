@@ -18,9 +18,9 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from joint_space_control.experiments.client import RosClient
-from joint_space_control.nodes.control_path import ControlPath
-from joint_space_control.nodes.diagnostics import DIAGNOSTICS_QOS, statuses
-from joint_space_control.nodes.messages import REFERENCE_QOS, stamp_to_ns
+from joint_space_control.ros.control_path import ControlPath
+from joint_space_control.ros.diagnostics import DIAGNOSTICS_QOS, statuses
+from joint_space_control.ros.messages import REFERENCE_QOS, stamp_to_ns
 
 #: Longest wait [s] for a joint state or command before the probe serves the rest, and how
 #: often [s] it serves the rest (services, parameters, diagnostics, the caller's own
@@ -131,7 +131,7 @@ class LoopProbe(RosClient):
     ) -> dict[str, dict[str, float | str]]:
         """Subscribe to /diagnostics (on first use) and spin until a status has arrived for
         every name in ``names`` and ``until(latest)`` holds; returns the newest status of
-        each name (:func:`~joint_space_control.nodes.diagnostics.statuses`)."""
+        each name (:func:`~joint_space_control.ros.diagnostics.statuses`)."""
         if self._diagnostics is None:
             self._diagnostics = {}
             self.node.create_subscription(

@@ -57,10 +57,10 @@ from joint_space_control.experiments.processes import ProcessGroup
 from joint_space_control.json_values import jsonable
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.nodes.control_path import ControlPath
-from joint_space_control.nodes.diagnostics import DIAGNOSTICS_QOS, statuses
-from joint_space_control.nodes.messages import REFERENCE_QOS
-from joint_space_control.nodes.wire import JointStateImage
+from joint_space_control.ros.control_path import ControlPath
+from joint_space_control.ros.diagnostics import DIAGNOSTICS_QOS, statuses
+from joint_space_control.ros.messages import REFERENCE_QOS
+from joint_space_control.ros.wire import JointStateImage
 
 CONTROLLERS = {
     "pd_gravity": "pd_gravity_controller",

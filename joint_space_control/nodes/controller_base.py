@@ -10,15 +10,15 @@ Topics (relative names): subscribes ``joint_states`` and ``reference``; publishe
 after every accepted parameter change) and the loop statistics on ``/diagnostics``.
 
 The control path (references, joint states and the control timer) runs in its own wait-set
-loop (:mod:`~joint_space_control.nodes.control_path`) and publishes serialized images
-(:mod:`~joint_space_control.nodes.wire`); parameters and services are served by a standard
+loop (:mod:`~joint_space_control.ros.control_path`) and publishes serialized images
+(:mod:`~joint_space_control.ros.wire`); parameters and services are served by a standard
 executor in a second thread. A lock makes parameter updates land between two ticks.
 
 Trigger (``trigger``): ``state`` answers every joint state once (a lockstep plant waits for
 that answer); ``timer`` commands at ``rate`` on the node clock from the newest state;
 ``auto`` (the default) follows the plant: the node reads the ``mode`` parameter of the
 publishers of its ``joint_states`` topic through their parameter services
-(:mod:`~joint_space_control.nodes.plant_mode`, asynchronously in the executor thread):
+(:mod:`~joint_space_control.ros.plant_mode`, asynchronously in the executor thread):
 ``lockstep`` → ``state``, anything else or no answer within 2 s → ``timer``. Until that is
 known the node sends nothing (a realtime plant holds its brakes meanwhile) and keeps the
 references it receives; once the plant is known to be lockstep, the newest waiting state
@@ -55,11 +55,11 @@ from trajectory_msgs.msg import JointTrajectory
 from joint_space_control.control.controller import Controller, Step
 from joint_space_control.laws.gains import DEFAULT_OMEGA_N, DEFAULT_ZETA, GainChoice, choose_gains
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
-from joint_space_control.nodes import parameters as params
-from joint_space_control.nodes.control_path import ControlPath
-from joint_space_control.nodes.diagnostics import LoopDiagnostics
-from joint_space_control.nodes.loop_statistics import LoopStatistics
-from joint_space_control.nodes.messages import (
+from joint_space_control.ros import parameters as params
+from joint_space_control.ros.control_path import ControlPath
+from joint_space_control.ros.diagnostics import LoopDiagnostics
+from joint_space_control.ros.loop_statistics import LoopStatistics
+from joint_space_control.ros.messages import (
     CONFIG_QOS,
     CONTROL_PUBLISHER_QOS,
     CONTROL_QOS,
@@ -71,8 +71,8 @@ from joint_space_control.nodes.messages import (
     state_message,
     trajectory_from_msg,
 )
-from joint_space_control.nodes.plant_mode import PlantModeWatcher
-from joint_space_control.nodes.wire import Float64ArrayImage, JointStateImage, JointStateReader
+from joint_space_control.ros.plant_mode import PlantModeWatcher
+from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
 
 TRIGGERS = ("auto", "timer", "state")
 #: The safety counters of a controller (on /diagnostics; docs/safety.md).

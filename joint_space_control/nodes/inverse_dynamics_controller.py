@@ -24,9 +24,9 @@ from joint_space_control.control.inverse_dynamics import (
 )
 from joint_space_control.laws.inverse_dynamics import ModelLaw
 from joint_space_control.model.dynamics import RobotModel
-from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.controller_base import JointController
-from joint_space_control.nodes.node_main import run_node
+from joint_space_control.ros import parameters as params
+from joint_space_control.ros.node_main import run_node
 
 
 class InverseDynamicsControllerNode(JointController):

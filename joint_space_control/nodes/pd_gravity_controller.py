@@ -27,9 +27,9 @@ from joint_space_control.control.pd_gravity import PDConfig, PDGravityController
 from joint_space_control.laws.gains import PDGains
 from joint_space_control.laws.pd_gravity import GravityCompensation
 from joint_space_control.model.dynamics import RobotModel
-from joint_space_control.nodes import parameters as params
 from joint_space_control.nodes.controller_base import JointController
-from joint_space_control.nodes.node_main import run_node
+from joint_space_control.ros import parameters as params
+from joint_space_control.ros.node_main import run_node
 
 
 class PDGravityControllerNode(JointController):

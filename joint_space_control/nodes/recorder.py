@@ -17,7 +17,7 @@ on a file system with less than ``min_free_space_mb`` free; a write error while 
 (disk full) stops the recording with one error line and exit code 1.
 
 The recorded subscriptions are served by a dedicated wait-set loop that takes every queued
-message at each wake-up (:class:`~joint_space_control.nodes.control_path.ControlPath`): a
+message at each wake-up (:class:`~joint_space_control.ros.control_path.ControlPath`): a
 standard executor rebuilds its wait set per message, which caps a recorder at a few thousand
 messages per second, less than a lockstep loop produces.
 """
@@ -41,8 +41,6 @@ from rclpy.subscription import Subscription
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
 from rosbags.interfaces import QosTime as BagQosTime
 
-from joint_space_control.nodes import parameters as params
-from joint_space_control.nodes.control_path import ControlPath, spin_node
 from joint_space_control.recording.bag_writer import (
     FLUSH_PERIOD,
     MIN_FREE_SPACE_MB,
@@ -52,6 +50,8 @@ from joint_space_control.recording.bag_writer import (
     RecordedTopic,
 )
 from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection
+from joint_space_control.ros import parameters as params
+from joint_space_control.ros.control_path import ControlPath, spin_node
 
 #: Messages a subscription queues while the recorder is busy writing.
 QUEUE_DEPTH = 10000

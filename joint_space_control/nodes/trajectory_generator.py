@@ -64,14 +64,14 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from joint_space_control.arrays import per_joint
-from joint_space_control.nodes import parameters as params
-from joint_space_control.nodes.messages import (
+from joint_space_control.ros import parameters as params
+from joint_space_control.ros.messages import (
     CONTROL_QOS,
     REFERENCE_QOS,
     JointOrder,
     ns_to_stamp,
 )
-from joint_space_control.nodes.node_main import run_node
+from joint_space_control.ros.node_main import run_node
 from joint_space_control.trajectories import shapes
 from joint_space_control.trajectories.reference import Trajectory
 

@@ -12,7 +12,7 @@ import rclpy
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int64
 
-from joint_space_control.nodes.control_path import ControlPath
+from joint_space_control.ros.control_path import ControlPath
 
 from .conftest import next_domain_id
 

@@ -18,7 +18,7 @@ from joint_space_control.experiments.probe import LoopProbe
 from joint_space_control.experiments.processes import ProcessGroup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.nodes.messages import CONFIG_QOS
+from joint_space_control.ros.messages import CONFIG_QOS
 
 from .conftest import next_domain_id
 

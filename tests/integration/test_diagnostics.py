@@ -9,8 +9,8 @@ import math
 import pytest
 from rosbags.highlevel import AnyReader
 
-from joint_space_control.nodes.loop_statistics import summary_keys
 from joint_space_control.recording.bag_writer import jazzy_typestore
+from joint_space_control.ros.loop_statistics import summary_keys
 
 from .conftest import JOINTS, SETPOINTS
 

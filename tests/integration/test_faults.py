@@ -22,7 +22,7 @@ from joint_space_control.experiments.probe import LoopProbe
 from joint_space_control.experiments.processes import ProcessGroup, isolated_env
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.nodes.messages import ns_to_stamp, stamp_to_ns
+from joint_space_control.ros.messages import ns_to_stamp, stamp_to_ns
 
 from .conftest import GAINS, JOINTS, next_domain_id
 

@@ -22,7 +22,7 @@ from trajectory_msgs.msg import JointTrajectory
 from joint_space_control.experiments import processes
 from joint_space_control.experiments.probe import LoopProbe
 from joint_space_control.experiments.processes import ProcessGroup
-from joint_space_control.nodes.messages import CONTROL_QOS, REFERENCE_QOS, stamp_to_ns
+from joint_space_control.ros.messages import CONTROL_QOS, REFERENCE_QOS, stamp_to_ns
 
 from .conftest import JOINTS, next_domain_id
 

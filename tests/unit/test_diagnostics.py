@@ -6,8 +6,8 @@ import math
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
-from joint_space_control.nodes.diagnostics import loop_status, parse_value, statuses, text
-from joint_space_control.nodes.loop_statistics import LoopStatistics, summary_keys
+from joint_space_control.ros.diagnostics import loop_status, parse_value, statuses, text
+from joint_space_control.ros.loop_statistics import LoopStatistics, summary_keys
 
 US = 1000
 

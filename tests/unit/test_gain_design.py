@@ -1,5 +1,5 @@
 """Gains from a natural frequency and a damping ratio, the controllers' gain precedence, and
-the trigger a plant's mode asks for (laws/gains.py, nodes/plant_mode.py)."""
+the trigger a plant's mode asks for (laws/gains.py, ros/plant_mode.py)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from joint_space_control.laws.gains import (
 from joint_space_control.laws.second_order import gains_to_second_order
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.nodes.plant_mode import trigger_for
+from joint_space_control.ros.plant_mode import trigger_for
 
 
 def closed_loop_second_order(b: float, kp: float, kd: float) -> tuple[float, float]:

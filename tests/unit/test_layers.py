@@ -21,6 +21,7 @@ PACKAGES = ("joint_space_control", "sim_bridge")
 # - model, laws, trajectories: the maths of the robot and the control laws;
 # - control: the controllers themselves (configuration, state, step), no ROS;
 # - analysis, recording: bags and metrics (rosbags, matplotlib; no running ROS graph);
+# - ros: the ROS 2 layer the nodes share (parameters, messages, control path, diagnostics);
 # - nodes, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level package);
 # - experiments: closed loops of node processes, scenarios, the soak run;
 # - bench: measurements that drive the experiments' process machinery;
@@ -41,6 +42,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ),
     ("joint_space_control.control",),
     ("joint_space_control.analysis", "joint_space_control.recording"),
+    ("joint_space_control.ros",),
     ("joint_space_control.nodes", "sim_bridge"),
     ("joint_space_control.experiments",),
     ("joint_space_control.bench",),

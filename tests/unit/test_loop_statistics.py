@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from joint_space_control.nodes.loop_statistics import (
+from joint_space_control.ros.loop_statistics import (
     LoopStatistics,
     nearest_rank,
     summary_keys,

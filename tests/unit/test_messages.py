@@ -16,7 +16,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from joint_space_control.nodes.messages import (
+from joint_space_control.ros.messages import (
     STATE_FIELDS,
     JointOrder,
     effort_arrays,
@@ -27,7 +27,7 @@ from joint_space_control.nodes.messages import (
     state_message,
     trajectory_from_msg,
 )
-from joint_space_control.nodes.parameters import (
+from joint_space_control.ros.parameters import (
     choice,
     names,
     nonnegative_number,
@@ -385,7 +385,7 @@ def test_config_message_is_strict_json_of_parameter_values():
     import array
     import json
 
-    from joint_space_control.nodes.messages import config_message
+    from joint_space_control.ros.messages import config_message
 
     msg = config_message(
         {

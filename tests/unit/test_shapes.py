@@ -16,12 +16,12 @@ import math
 import numpy as np
 import pytest
 
-from joint_space_control.nodes.messages import JointOrder, stamp_to_ns, trajectory_from_msg
 from joint_space_control.nodes.trajectory_generator import (
     PARAMETERS,
     build_config,
     trajectory_message,
 )
+from joint_space_control.ros.messages import JointOrder, stamp_to_ns, trajectory_from_msg
 from joint_space_control.trajectories import shapes
 from joint_space_control.trajectories.reference import Reference, Sample
 from joint_space_control.trajectories.shapes import quintic, sinusoid, step, waypoints

@@ -10,13 +10,13 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from joint_space_control.nodes.messages import (
+from joint_space_control.ros.messages import (
     JointOrder,
     effort_arrays,
     joint_state_arrays,
     state_message,
 )
-from joint_space_control.nodes.wire import Float64ArrayImage, JointStateImage, JointStateReader
+from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
 
 NAME_SETS = [
     ["j"],

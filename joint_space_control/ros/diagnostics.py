@@ -1,7 +1,7 @@
 """Loop statistics on ``/diagnostics`` (diagnostic_msgs/DiagnosticArray), once a second.
 
 One DiagnosticStatus per node: ``name`` "<node>: control loop", ``hardware_id`` the robot,
-``values`` every key of :func:`~joint_space_control.nodes.loop_statistics.summary_keys`
+``values`` every key of :func:`~joint_space_control.ros.loop_statistics.summary_keys`
 (numbers as text, ``nan`` where nothing was measured) followed by the node's own keys. The
 level is ERROR while the node reports an alarm (a controller not commanding for lack of
 joint states, a plant braking for lack of commands), WARN while ticks miss their deadline
@@ -22,7 +22,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from joint_space_control.nodes.loop_statistics import LoopStatistics
+from joint_space_control.ros.loop_statistics import LoopStatistics
 
 DIAGNOSTICS_TOPIC = "/diagnostics"
 DIAGNOSTICS_QOS = QoSProfile(

@@ -11,13 +11,13 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
-from joint_space_control.nodes.control_path import spin_node
+from joint_space_control.ros.control_path import spin_node
 
 
 def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None:
     """Create the node and spin it until Ctrl-C or SIGTERM (both shut rclpy down cleanly).
 
-    A node with a ``control_path`` (:class:`~joint_space_control.nodes.control_path.ControlPath`)
+    A node with a ``control_path`` (:class:`~joint_space_control.ros.control_path.ControlPath`)
     has it served in this thread and everything else by an executor in a second thread.
 
     A configuration error (unknown robot, invalid parameter at start-up) is reported on one

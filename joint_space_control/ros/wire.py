@@ -27,7 +27,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from joint_space_control.nodes.messages import JointOrder
+from joint_space_control.ros.messages import JointOrder
 
 #: Encapsulation header of a little-endian plain CDR payload.
 CDR_LE = b"\x00\x01\x00\x00"
