@@ -1,0 +1,130 @@
+"""The parameters as declared by the nodes (their ParamSpec lists, the one place each is
+declared) agree with the tables of docs/parameters.md and with the parameter files in
+config/: every parameter is documented, under its node, with its default and its
+read-only mark, and every key of a parameter file is a parameter of that node."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+from joint_space_control.nodes.controller_base import COMMON_PARAMETERS
+from joint_space_control.nodes.inverse_dynamics_controller import InverseDynamicsControllerNode
+from joint_space_control.nodes.pd_gravity_controller import PDGravityControllerNode
+from joint_space_control.nodes.recorder import PARAMETERS as RECORDER
+from joint_space_control.nodes.trajectory_generator import PARAMETERS as GENERATOR
+from joint_space_control.ros.parameters import ROBOT_PARAMETERS, ParamSpec
+from sim_bridge.node import PARAMETERS as SIM_BRIDGE
+
+ROOT = Path(__file__).resolve().parents[2]
+DOC = ROOT / "docs" / "parameters.md"
+CONFIG = ROOT / "joint_space_control" / "config"
+
+NODES: dict[str, tuple[ParamSpec, ...]] = {
+    "sim_bridge": SIM_BRIDGE,
+    "pd_gravity_controller": COMMON_PARAMETERS + PDGravityControllerNode.LAW_PARAMETERS,
+    "inverse_dynamics_controller": COMMON_PARAMETERS
+    + InverseDynamicsControllerNode.LAW_PARAMETERS,
+    "trajectory_generator": GENERATOR,
+    "recorder": RECORDER,
+}
+#: Parameters the docs describe once for several nodes: the robot ones ("every node") and
+#: the controllers' common ones (under pd_gravity_controller, "same common parameters").
+SHARED = {"every node": ROBOT_PARAMETERS, "pd_gravity_controller": COMMON_PARAMETERS}
+
+
+#: Pages holding one node's table, besides docs/parameters.md (sections by bold node names).
+PAGES = {"references.md": "trajectory_generator", "recording.md": "recorder"}
+
+
+def documented_rows() -> dict[str, dict[str, tuple[str, bool]]]:
+    """{section: {parameter: (default text, read-only)}} from the parameter tables of the
+    docs; a section is a node name (or "every node")."""
+    sections: dict[str, dict[str, tuple[str, bool]]] = {}
+    for page in ["parameters.md", *PAGES]:
+        section = PAGES.get(page)
+        all_ro = False
+        for line in (DOC.parent / page).read_text().splitlines():
+            bold = re.match(r"\*\*(\w+)\*\*", line)
+            if bold and page == "parameters.md":
+                section, all_ro = bold.group(1), False
+            if line.startswith("| parameter"):
+                if "every node" in line:
+                    section = "every node"
+                all_ro = "RO" in line
+                continue
+            if not line.startswith("| `") or section is None:
+                continue
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            names = re.findall(r"`([a-z_]+)`", cells[0])
+            ro = "(RO)" in cells[0] or all_ro
+            defaults = [d.strip() for d in cells[1].split(",")] if len(names) > 1 else [cells[1]]
+            for name, default in zip(names, defaults, strict=False):
+                sections.setdefault(section, {})[name] = (default, ro)
+    return sections
+
+
+def same_default(text: str, value: object) -> bool:
+    """The documented default is the declared one (an empty declared default may be
+    documented by what it means, e.g. the recorder's generated bag name)."""
+    text = text.strip().strip("`")
+    if isinstance(value, bool):
+        return text == str(value).lower()
+    if isinstance(value, int | float):
+        try:
+            return float(text) == float(value)
+        except ValueError:
+            return False
+    if value in ("", []):
+        return bool(text)
+    return text == value
+
+
+#: Where the controllers' shared parameters are documented: under either controller.
+CONTROLLERS = ("pd_gravity_controller", "inverse_dynamics_controller")
+
+
+def sections_of(node: str, name: str) -> tuple[str, ...]:
+    if name in {s.name for s in ROBOT_PARAMETERS}:
+        return ("every node",)
+    if node in CONTROLLERS and name in {s.name for s in COMMON_PARAMETERS}:
+        return CONTROLLERS
+    return (node,)
+
+
+@pytest.mark.parametrize("node", list(NODES))
+def test_every_parameter_is_documented_with_its_default_and_read_only_mark(node):
+    rows = documented_rows()
+    for spec in NODES[node]:
+        sections = sections_of(node, spec.name)
+        found = [rows[s][spec.name] for s in sections if spec.name in rows.get(s, {})]
+        assert found, f"{node}: '{spec.name}' not documented under {sections}"
+        default, ro = found[0]
+        assert same_default(default, spec.default), (node, spec.name, default, spec.default)
+        assert ro == spec.read_only, (node, spec.name, "RO mark", ro, spec.read_only)
+
+
+def test_the_docs_list_no_parameter_that_does_not_exist():
+    declared = {s.name for specs in NODES.values() for s in specs}
+    for section, rows in documented_rows().items():
+        assert set(rows) <= declared, (section, set(rows) - declared)
+
+
+@pytest.mark.parametrize("path", sorted(CONFIG.glob("*.yaml")), ids=lambda p: p.name)
+def test_parameter_files_set_only_declared_parameters(path):
+    node = next(n for n in sorted(NODES, key=len, reverse=True) if path.stem.startswith(n))
+    declared = {s.name for s in NODES[node]} | {"use_sim_time"}
+    for entry in yaml.safe_load(path.read_text()).values():
+        keys = set(entry["ros__parameters"])
+        assert keys <= declared, (path.name, keys - declared)
+
+
+def test_the_checker_sees_a_wrong_default():
+    """Not vacuous: a default that differs from the schema is caught."""
+    rows = documented_rows()
+    default, _ = rows["sim_bridge"]["command_timeout"]
+    assert same_default(default, 0.1) and not same_default(default, 0.2)
+    assert set(rows) >= {"every node", *NODES}  # every node's table was found
