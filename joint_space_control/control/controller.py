@@ -13,8 +13,7 @@ trajectories, the law's state and gains that were designed at the start configur
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -25,8 +24,7 @@ from joint_space_control.trajectories.reference import Reference, Sample, Trajec
 MAX_DT = 0.1
 
 
-@dataclass(frozen=True)
-class Step:
+class Step(NamedTuple):
     """One control step: the reference sample, the torque split [N·m], the torque before and
     after clamping to the effort limits [N·m]; ``tau`` is None when the law gave a non-finite
     torque (NaN passes through a clamp): nothing must be sent then."""

@@ -74,12 +74,18 @@ class PDGravityController(Controller):
 
     def after_step(self, ref: Sample, q: np.ndarray, unclamped: np.ndarray, dt: float) -> None:
         gains = self.config.gains
-        if np.any(gains.ki > 0):
+        if gains is not self._ki_of:  # whether K_I acts: once per gain set, not per step
+            self._ki_of, self._ki_on = gains, bool(np.any(gains.ki > 0))
+        if self._ki_on:
             self._integral = integrate_error(
                 self._integral, ref.q - q, dt, gains, unclamped, self.effort_limits
             )
-        elif np.any(self._integral):
-            self._integral = np.zeros(self.n)
+            self._integral_zero = False
+        elif not self._integral_zero:  # K_I set back to 0: the integral goes
+            self.reset_state()
 
     def reset_state(self) -> None:
         self._integral = np.zeros(self.n)
+        self._integral_zero = True
+        self._ki_of: PDGains | None = None
+        self._ki_on = False
