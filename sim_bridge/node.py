@@ -52,7 +52,6 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from joint_space_control.arrays import nonnegative, per_joint
 from joint_space_control.ros import parameters as params
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
@@ -82,61 +81,81 @@ STALL_WARNING = 0.75
 #: ... and again every this long [s] while it stays unanswered.
 STALL_REPEAT = 10.0
 
+POSITIVE = {"minimum": 0.0, "exclusive": True}
+NONNEGATIVE = {"minimum": 0.0}
+
 PARAMETERS = params.ROBOT_PARAMETERS + (
-    params.ParamSpec("mode", "realtime", "realtime | lockstep", read_only=True),
+    params.ParamSpec("mode", "realtime", "Plant timing", read_only=True, choices=MODES),
     params.ParamSpec(
         "physics_rate",
         1000.0,
-        "Physics step rate [Hz], a multiple of publish_rate",
+        "Physics step rate, a multiple of publish_rate",
         read_only=True,
+        unit="Hz",
+        **POSITIVE,
     ),
     params.ParamSpec(
         "publish_rate",
         1000.0,
-        "Joint state rate [Hz] (= command period in lockstep)",
+        "Joint state rate (= command period in lockstep)",
         read_only=True,
+        unit="Hz",
+        **POSITIVE,
     ),
     params.ParamSpec(
         "initial_positions",
         0.0,
-        "Initial joint positions [rad], one value or one per joint",
+        "Initial joint positions (clipped into the joint limits)",
         read_only=True,
         dynamic=True,
+        unit="rad",
     ),
     params.ParamSpec(
         "viscous_friction",
         0.0,
-        "Plant viscous friction F [N·m·s/rad], one value or "
-        "one per joint, >= 0 (the URDF's joint damping is not applied)",
+        "Plant viscous friction F (the URDF's joint damping is not applied)",
         dynamic=True,
+        unit="N·m·s/rad",
+        **NONNEGATIVE,
     ),
     params.ParamSpec(
         "payload_mass",
         0.0,
-        "Point mass [kg] at the centre of mass of the last joint's link, >= 0 (plant only)",
+        "Point mass at the centre of mass of the last joint's link (plant only)",
+        unit="kg",
+        **NONNEGATIVE,
     ),
     params.ParamSpec(
-        "command_timeout", 0.1, "Realtime: brake when no valid command for this long [s], > 0"
+        "command_timeout",
+        0.1,
+        "Realtime: brake when no valid command for this long",
+        unit="s",
+        **POSITIVE,
     ),
     params.ParamSpec(
         "max_torque_rate",
         0.0,
-        "Torque-rate limit [N·m/s] on the applied torque, one value or one per joint, >= 0 "
-        "(0: off)",
+        "Torque-rate limit on the applied torque (0: off)",
         dynamic=True,
+        unit="N·m/s",
+        **NONNEGATIVE,
     ),
     params.ParamSpec(
         "republish_period",
         0.5,
-        "Lockstep: send an unanswered state again after this wall time [s], > 0",
+        "Lockstep: send an unanswered state again after this wall time",
         read_only=True,
+        unit="s",
+        **POSITIVE,
     ),
     params.ParamSpec("start_paused", False, "Start paused (call ~/resume to run)", read_only=True),
     params.ParamSpec(
         "pause_at",
         0.0,
-        "Lockstep: pause once the state at this simulation time [s] is published "
+        "Lockstep: pause once the state at this simulation time is published "
         "(0: never); setting it again re-arms it",
+        unit="s",
+        **NONNEGATIVE,
     ),
     params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
 )
@@ -151,31 +170,29 @@ class SimBridge(Node):
         spec = model.spec
         self.joints = model.joint_names
         self.n = len(self.joints)
-        self.mode = params.choice(v, "mode", MODES)
-        physics_rate = params.positive(v, "physics_rate")
-        publish_rate = params.positive(v, "publish_rate")
+        self.mode = params.value(v, "mode")
+        physics_rate = params.value(v, "physics_rate")
+        publish_rate = params.value(v, "publish_rate")
         substeps = round(physics_rate / publish_rate)
         if substeps < 1 or abs(substeps * publish_rate - physics_rate) > 1e-6 * physics_rate:
             raise ValueError("physics_rate must be an integer multiple of publish_rate")
         self.substeps = substeps
         self.physics_dt_ns = round(1e9 / physics_rate)
         self.period_ns = substeps * self.physics_dt_ns
-        self.command_timeout = params.positive(v, "command_timeout")
-        republish = params.positive(v, "republish_period")
+        self.command_timeout = params.value(v, "command_timeout")
+        republish = params.value(v, "republish_period")
         self.plant = Plant(
             spec,
             self.joints,
             physics_rate,
-            friction=params.numbers(v, "viscous_friction"),
-            payload_mass=params.nonnegative_number(v, "payload_mass"),
+            friction=params.value(v, "viscous_friction", self.n),
+            payload_mass=params.value(v, "payload_mass"),
             initial_positions=self._initial_positions(v, model),
             locked_positions=model.locked_positions,
             effort_limits=model.effort_limits,
             gui=bool(v["gui"]),
         )
-        self.plant.set_torque_rate_limit(
-            nonnegative(params.numbers(v, "max_torque_rate"), self.n, "max_torque_rate")
-        )
+        self.plant.set_torque_rate_limit(params.value(v, "max_torque_rate", self.n))
         for warning in self.plant.warnings:
             self.get_logger().warning(warning)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -248,15 +265,11 @@ class SimBridge(Node):
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         values = params.with_changes(self, PARAMETERS, changes)
         try:
-            friction = nonnegative(
-                params.numbers(values, "viscous_friction"), self.n, "viscous_friction"
-            )
-            payload = params.nonnegative_number(values, "payload_mass")
-            timeout = params.positive(values, "command_timeout")
+            friction = params.value(values, "viscous_friction", self.n)
+            payload = params.value(values, "payload_mass")
+            timeout = params.value(values, "command_timeout")
             pause_at = self._pause_time(values)
-            max_rate = nonnegative(
-                params.numbers(values, "max_torque_rate"), self.n, "max_torque_rate"
-            )
+            max_rate = params.value(values, "max_torque_rate", self.n)
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
@@ -273,9 +286,7 @@ class SimBridge(Node):
     def _initial_positions(self, values: dict[str, Any], model: Any) -> np.ndarray:
         """``initial_positions``, clipped into the joint limits (with a log line when it
         had to be: a zero configuration can lie outside them, Panda joint 4 say)."""
-        q0 = per_joint(params.numbers(values, "initial_positions"), self.n, "initial_positions")
-        if not np.all(np.isfinite(q0)):
-            raise ValueError(f"'initial_positions' must be finite, got {q0.tolist()}")
+        q0 = params.value(values, "initial_positions", self.n)
         clipped, outside = model.clip_into_limits(q0)
         if outside:
             self.get_logger().warning(
@@ -287,7 +298,7 @@ class SimBridge(Node):
     @staticmethod
     def _pause_time(values: dict[str, Any]) -> int | None:
         """``pause_at`` in ns, or None when off (0)."""
-        value = params.nonnegative_number(values, "pause_at")
+        value = params.value(values, "pause_at")
         return round(value * 1e9) if value > 0 else None
 
     def _diagnostic_values(self, summary: Mapping[str, float]) -> dict[str, Any]:

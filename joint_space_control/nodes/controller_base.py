@@ -86,7 +86,15 @@ COUNTERS = (
 )
 
 COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
-    params.ParamSpec("rate", 1000.0, "Control rate [Hz] with trigger=timer, > 0", read_only=True),
+    params.ParamSpec(
+        "rate",
+        1000.0,
+        "Control rate with trigger=timer",
+        read_only=True,
+        unit="Hz",
+        minimum=0.0,
+        exclusive=True,
+    ),
     params.ParamSpec(
         "trigger",
         "auto",
@@ -94,75 +102,84 @@ COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
         "lockstep -> state, anything else -> timer); timer: command at 'rate' from the "
         "latest state; state: answer every joint state once (lockstep)",
         read_only=True,
+        choices=TRIGGERS,
     ),
     params.ParamSpec(
         "state_timeout",
         0.1,
-        "Stop commanding when no joint state arrived for this long [s] (wall time at "
-        "receipt), > 0",
+        "Stop commanding when no joint state arrived for this long (wall time at receipt)",
+        unit="s",
+        minimum=0.0,
+        exclusive=True,
     ),
     params.ParamSpec(
         "kp",
         0.0,
-        "Proportional gain K_P, one value or one per joint, > 0; 0: not given (see omega_n)",
+        "Proportional gain K_P; 0: not given (see omega_n), else > 0 on every joint",
         dynamic=True,
+        unit="N·m/rad",
+        minimum=0.0,
     ),
     params.ParamSpec(
         "kd",
         0.0,
-        "Derivative gain K_D, one value or one per joint, >= 0; only with kp > 0",
+        "Derivative gain K_D; only with kp > 0",
         dynamic=True,
+        unit="N·m·s/rad",
+        minimum=0.0,
     ),
     params.ParamSpec(
         "omega_n",
         0.0,
-        "Natural frequency ω_n [rad/s], one value or one per joint, > 0: gains from "
-        "omega_n/zeta (over kp/kd); 0: not given (kp/kd if kp > 0, else "
-        f"ω_n = {DEFAULT_OMEGA_N:g} rad/s)",
+        "Natural frequency ω_n: gains from omega_n/zeta (over kp/kd); 0: not given (kp/kd "
+        f"if kp > 0, else ω_n = {DEFAULT_OMEGA_N:g} rad/s), else > 0 on every joint",
         dynamic=True,
+        unit="rad/s",
+        minimum=0.0,
     ),
     params.ParamSpec(
         "zeta",
         DEFAULT_ZETA,
-        "Damping ratio ζ, one value or one per joint, >= 0 (with omega_n or the default)",
+        "Damping ratio ζ (with omega_n or the default)",
         dynamic=True,
+        minimum=0.0,
     ),
     # The controller's own model (B̂, Ĉ, F̂, ĝ) can differ from the plant on purpose.
     params.ParamSpec(
         "model_mass_scale",
         1.0,
-        "Controller model: factor on the mass and inertia of the link each joint moves, "
-        "one value or one per joint, > 0",
+        "Controller model: factor on the mass and inertia of the link each joint moves",
         dynamic=True,
+        minimum=0.0,
+        exclusive=True,
     ),
     params.ParamSpec(
         "model_payload_mass",
         0.0,
-        "Controller model: point mass [kg] at the last link's centre of mass, >= 0",
+        "Controller model: point mass at the last link's centre of mass",
+        unit="kg",
+        minimum=0.0,
     ),
     params.ParamSpec(
         "model_friction",
         0.0,
-        "Controller model: viscous friction F̂ [N·m·s/rad], one value or one per joint, >= 0",
+        "Controller model: viscous friction F̂",
         dynamic=True,
+        unit="N·m·s/rad",
+        minimum=0.0,
     ),
     params.ParamSpec("model_gravity", True, "Controller model: false models no gravity (ĝ ≡ 0)"),
 )
 MODEL_PARAMETERS = ("model_mass_scale", "model_payload_mass", "model_friction", "model_gravity")
 
 
-def model_perturbation(values: dict[str, Any]) -> ModelPerturbation:
+def model_perturbation(values: params.ParamValues) -> ModelPerturbation:
     """The controller model's deliberate differences from the URDF, from parameter values."""
-    payload = values["model_payload_mass"]
-    if isinstance(payload, bool) or not isinstance(payload, int | float):
-        raise ValueError(f"'model_payload_mass' must be a number, got {payload!r}")
-    if not isinstance(values["model_gravity"], bool):
-        raise ValueError(f"'model_gravity' must be true or false, got {values['model_gravity']!r}")
     return ModelPerturbation(
-        friction=tuple(params.numbers(values, "model_friction")),
-        mass_scale=tuple(params.numbers(values, "model_mass_scale")),
-        payload_mass=float(payload),
-        gravity=values["model_gravity"],
+        friction=tuple(params.value(values, "model_friction").tolist()),
+        mass_scale=tuple(params.value(values, "model_mass_scale").tolist()),
+        payload_mass=params.value(values, "model_payload_mass"),
+        gravity=params.value(values, "model_gravity"),
     )
 
 
@@ -193,15 +210,15 @@ class JointController(Node):
         self.n = len(self.joints)
         self.effort_limits = self.model.effort_limits
         self._robot_name = spec.name
-        self._rate = rate = params.positive(values, "rate")
-        self.trigger_parameter = params.choice(values, "trigger", TRIGGERS)
+        self._rate = rate = params.value(values, "rate")
+        self.trigger_parameter = params.value(values, "trigger")
         # the trigger in force: "timer" | "state" | "pending" (auto, plant mode not known)
         self.trigger = "pending" if self.trigger_parameter == "auto" else self.trigger_parameter
         self._trigger_reason = ""
         # the controller itself (no ROS): configuration, state, step
         self.core = self.CORE(self.build_config(values, self.model), self.effort_limits)
         self._values = values  # the parameter values in force
-        self._state_timeout = params.positive(values, "state_timeout")
+        self._state_timeout = params.value(values, "state_timeout")
         self._lock = threading.Lock()  # parameter updates wait for the end of a tick
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -292,10 +309,10 @@ class JointController(Node):
         """The validated gain parameters and their precedence (laws.gains.choose_gains)."""
         return choose_gains(
             self.n,
-            params.numbers(values, "kp"),
-            params.numbers(values, "kd"),
-            params.numbers(values, "omega_n"),
-            params.numbers(values, "zeta"),
+            params.value(values, "kp", self.n),
+            params.value(values, "kd", self.n),
+            params.value(values, "omega_n", self.n),
+            params.value(values, "zeta", self.n),
         )
 
     # -- parameters --------------------------------------------------------------------
@@ -304,7 +321,7 @@ class JointController(Node):
         try:
             model = self._model_for(values)
             config = self.build_config(values, model)
-            timeout = params.positive(values, "state_timeout")
+            timeout = params.value(values, "state_timeout")
             with self._lock:  # between two ticks
                 self.core.set_config(config)  # swapped whole; a tick reads it once
                 self.model, self._perturbation = model, model_perturbation(values)

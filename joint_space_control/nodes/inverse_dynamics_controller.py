@@ -40,6 +40,7 @@ class InverseDynamicsControllerNode(JointController):
             "law",
             "inverse_dynamics",
             "inverse_dynamics (eq. 15) | feedforward_pd (eq. 17) | precomputed_feedforward",
+            choices=tuple(law.value for law in ModelLaw),
         ),
     )
 
@@ -49,7 +50,10 @@ class InverseDynamicsControllerNode(JointController):
     def build_config(self, values: dict[str, Any], model: RobotModel) -> IDConfig:
         choice = self.gain_choice(values)
         return IDConfig(
-            model, gains_from_choice(choice, self.n), ModelLaw.parse(values["law"]), choice
+            model,
+            gains_from_choice(choice, self.n),
+            ModelLaw.parse(params.value(values, "law")),
+            choice,
         )
 
     def law_name(self, config: IDConfig) -> str:

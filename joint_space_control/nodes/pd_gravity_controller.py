@@ -22,7 +22,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from joint_space_control.arrays import nonnegative, per_joint
 from joint_space_control.control.pd_gravity import PDConfig, PDGravityController
 from joint_space_control.laws.gains import PDGains
 from joint_space_control.laws.pd_gravity import GravityCompensation
@@ -41,20 +40,22 @@ class PDGravityControllerNode(JointController):
             "gravity_compensation",
             "full",
             "Gravity term: full = g(q) | none = pure PD | desired = g(q_d)",
+            choices=tuple(mode.value for mode in GravityCompensation),
         ),
         params.ParamSpec(
             "ki",
             0.0,
-            "Integral gain K_I [N·m/(rad·s)], one value or one per joint, "
-            ">= 0; anti-windup at the effort limits",
+            "Integral gain K_I; anti-windup at the effort limits",
             dynamic=True,
+            unit="N·m/(rad·s)",
+            minimum=0.0,
         ),
         params.ParamSpec(
             "gravity_estimate",
             0.0,
-            "Constant torque u [N·m] added to the law, one "
-            "value or one per joint (iterative gravity estimation)",
+            "Constant torque u added to the law (iterative gravity estimation)",
             dynamic=True,
+            unit="N·m",
         ),
     )
 
@@ -66,10 +67,10 @@ class PDGravityControllerNode(JointController):
     def build_config(self, values: dict[str, Any], model: RobotModel) -> PDConfig:
         n = self.n
         choice = self.gain_choice(values)
-        ki = nonnegative(params.numbers(values, "ki"), n, "ki")
+        ki = params.value(values, "ki", n)
         gains = None if choice.designed else PDGains.build(n, choice.kp, choice.kd, ki)
-        mode = GravityCompensation.parse(values["gravity_compensation"])
-        estimate = per_joint(params.numbers(values, "gravity_estimate"), n, "gravity_estimate")
+        mode = GravityCompensation.parse(params.value(values, "gravity_compensation"))
+        estimate = params.value(values, "gravity_estimate", n)
         return PDConfig(model, gains, mode, estimate, choice, ki)
 
     def law_name(self, config: PDConfig) -> str:

@@ -72,11 +72,17 @@ PARAMETERS = (
         "Topic names or patterns (* ? []) to record; relative ones in the node's namespace; "
         f"empty: {', '.join(DEFAULT_TOPICS)}",
         read_only=True,
-        dynamic=True,
+        kind="names",
     ),
-    params.ParamSpec("storage", "mcap", "Storage format: mcap | sqlite3", read_only=True),
+    params.ParamSpec("storage", "mcap", "Storage format", read_only=True, choices=tuple(STORAGES)),
     params.ParamSpec(
-        "discovery_period", 0.2, "Wall time between looks for new topics [s], > 0", read_only=True
+        "discovery_period",
+        0.2,
+        "Wall time between looks for new topics",
+        read_only=True,
+        unit="s",
+        minimum=0.0,
+        exclusive=True,
     ),
     params.ParamSpec(
         "flush_period",
@@ -85,12 +91,16 @@ PARAMETERS = (
         "most a SIGKILL loses; 0: only at close (MCAP: 1 MiB chunks; sqlite3: nothing "
         "survives a kill)",
         read_only=True,
+        unit="s",
+        minimum=0.0,
     ),
     params.ParamSpec(
         "min_free_space_mb",
         MIN_FREE_SPACE_MB,
-        "Free space the output's file system must have at start [MB]; 0: no check",
+        "Free space the output's file system must have at start; 0: no check",
         read_only=True,
+        unit="MB",
+        minimum=0.0,
     ),
 )
 
@@ -144,11 +154,11 @@ class Recorder(Node):
         super().__init__("recorder", **kwargs)
         params.declare(self, PARAMETERS)
         values = params.current_values(self, PARAMETERS)
-        storage = params.choice(values, "storage", STORAGES)
-        self.selection = TopicSelection(params.names(values, "topics"), self.get_namespace())
-        period = params.positive(values, "discovery_period")
-        flush_period = params.nonnegative_number(values, "flush_period")
-        min_free = params.nonnegative_number(values, "min_free_space_mb")
+        storage = params.value(values, "storage")
+        self.selection = TopicSelection(params.value(values, "topics"), self.get_namespace())
+        period = params.value(values, "discovery_period")
+        flush_period = params.value(values, "flush_period")
+        min_free = params.value(values, "min_free_space_mb")
         output = values["output"] or time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S")
         # fails here, before anything runs
         self.bag = BagWriter(output, storage, flush_period, min_free)

@@ -84,42 +84,52 @@ JOINT_STATE_TIMEOUT = 2.0
 STARTUP_POLL = 0.05
 
 PARAMETERS = params.ROBOT_PARAMETERS + (
-    params.ParamSpec("shape", "step", "step | sinusoid | quintic | waypoints"),
+    params.ParamSpec("shape", "step", "Reference shape", choices=SHAPES),
+    params.ParamSpec("target", 0.0, "step: set-point; quintic: goal", dynamic=True, unit="rad"),
     params.ParamSpec(
-        "target",
-        0.0,
-        "step: set-point; quintic: goal [rad], one value or one per joint",
-        dynamic=True,
+        "duration",
+        5.0,
+        "quintic: move time; sinusoid: length",
+        unit="s",
+        minimum=0.0,
+        exclusive=True,
     ),
-    params.ParamSpec("duration", 5.0, "quintic: move time; sinusoid: length [s], > 0"),
     params.ParamSpec(
         "center",
         [],
         "sinusoid: centre q̄ [rad], one value or one per joint; empty: the current "
         "configuration (needs start_from_current)",
+        kind="numbers",
+    ),
+    params.ParamSpec("amplitude", 0.1, "sinusoid: amplitude Δ", dynamic=True, unit="rad"),
+    params.ParamSpec(
+        "omega",
+        1.0,
+        "sinusoid: angular frequency ω",
         dynamic=True,
+        unit="rad/s",
+        minimum=0.0,
     ),
+    params.ParamSpec("phase", 0.0, "sinusoid: phase φ", dynamic=True, unit="rad"),
     params.ParamSpec(
-        "amplitude", 0.1, "sinusoid: amplitude Δ [rad], one or per joint", dynamic=True
-    ),
-    params.ParamSpec(
-        "omega", 1.0, "sinusoid: angular frequency ω [rad/s] >= 0, one or per joint", dynamic=True
-    ),
-    params.ParamSpec("phase", 0.0, "sinusoid: phase φ [rad], one or per joint", dynamic=True),
-    params.ParamSpec(
-        "sample_period", shapes.DEFAULT_SAMPLE_PERIOD, "sinusoid: sampling period [s], > 0"
+        "sample_period",
+        shapes.DEFAULT_SAMPLE_PERIOD,
+        "sinusoid: sampling period",
+        unit="s",
+        minimum=0.0,
+        exclusive=True,
     ),
     params.ParamSpec(
         "waypoints",
         [],
         "waypoints: positions [rad], row-major m × n (one row per waypoint)",
-        dynamic=True,
+        kind="numbers",
     ),
     params.ParamSpec(
         "waypoint_times",
         [],
         "waypoints: m times after the start [s], >= 0, strictly increasing",
-        dynamic=True,
+        kind="numbers",
     ),
     params.ParamSpec(
         "start_from_current",
@@ -130,7 +140,9 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
     params.ParamSpec(
         "start_delay",
         0.0,
-        "header.stamp = now + start_delay [s] (node clock), >= 0; 0: stamp 0 = 'now'",
+        "header.stamp = now + start_delay (node clock); 0: stamp 0 = 'now'",
+        unit="s",
+        minimum=0.0,
     ),
     params.ParamSpec(
         "publish_on_start",
@@ -206,12 +218,12 @@ def _optional_numbers(values: dict[str, Any], name: str) -> list[float] | None:
 
 
 def build_config(values: dict[str, Any], n: int) -> GeneratorConfig:
-    """Validate parameter values for n joints (``ValueError`` with a reason)."""
-    shape = params.choice(values, "shape", SHAPES)
+    """Validate parameter values for n joints (``ValueError`` with a reason): each against its
+    declaration (:data:`PARAMETERS`), then together."""
+    values = params.ParamValues(PARAMETERS, values)
+    shape = params.value(values, "shape")
     center = _optional_numbers(values, "center")
-    omega = per_joint(params.numbers(values, "omega"), n, "omega")
-    if np.any(omega < 0):
-        raise ValueError(f"'omega' must be >= 0 [rad/s], got {omega.tolist()}")
+    omega = params.value(values, "omega", n)
     flat = _optional_numbers(values, "waypoints")
     if flat is not None and len(flat) % n:
         raise ValueError(
@@ -229,17 +241,17 @@ def build_config(values: dict[str, Any], n: int) -> GeneratorConfig:
         )
     config = GeneratorConfig(
         shape=shape,
-        target=per_joint(params.numbers(values, "target"), n, "target"),
-        duration=params.positive(values, "duration"),
+        target=params.value(values, "target", n),
+        duration=params.value(values, "duration"),
         center=None if center is None else per_joint(center, n, "center"),
-        amplitude=per_joint(params.numbers(values, "amplitude"), n, "amplitude"),
+        amplitude=params.value(values, "amplitude", n),
         omega=omega,
-        phase=per_joint(params.numbers(values, "phase"), n, "phase"),
-        sample_period=params.positive(values, "sample_period"),
+        phase=params.value(values, "phase", n),
+        sample_period=params.value(values, "sample_period"),
         waypoints=None if flat is None else np.array(flat).reshape(-1, n),
         waypoint_times=None if times is None else np.array(times),
         start_from_current=values["start_from_current"],
-        start_delay=params.nonnegative_number(values, "start_delay"),
+        start_delay=params.value(values, "start_delay"),
     )
     if shape == "sinusoid" and center is None and not config.start_from_current:
         raise ValueError(

@@ -10,16 +10,24 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from joint_space_control.arrays import per_joint
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One parameter: default value, description (with units and range), mutability.
+    """One parameter, declared once: default, description, unit, range, shape, mutability.
 
-    ``dynamic`` parameters accept either one number or a list (``kp:=100`` or
-    ``kp:=[100, 50]``); their range is checked by the node's validator.
+    From it follow the ROS descriptor (:func:`declare`: read-only, dynamic typing and the
+    constraints text), the validation of every value (:meth:`check`, through :func:`value`)
+    and the documented defaults (tests/unit/test_parameter_docs.py).
+
+    - numbers: ``minimum`` (with ``exclusive``: strictly above it); ``dynamic`` numbers take
+      one value or one per joint (``kp:=100`` or ``kp:=[100, 50]``);
+    - ``choices``: the allowed strings;
+    - ``kind`` is inferred from the default (bool, number, string) except for lists, where it
+      must be ``"numbers"`` or ``"names"``.
     """
 
     name: str
@@ -27,6 +35,92 @@ class ParamSpec:
     description: str
     read_only: bool = False
     dynamic: bool = False
+    unit: str = ""
+    minimum: float | None = None
+    exclusive: bool = False
+    choices: tuple[str, ...] = ()
+    kind: str = ""
+
+    @property
+    def type(self) -> str:
+        """ "flag" | "number" | "numbers" | "text" | "names"."""
+        if self.kind:
+            return self.kind
+        if isinstance(self.default, bool):
+            return "flag"
+        if isinstance(self.default, int | float):
+            return "numbers" if self.dynamic else "number"
+        if isinstance(self.default, str):
+            return "text"
+        raise TypeError(f"parameter '{self.name}': give kind='numbers' or 'names'")
+
+    @property
+    def constraints(self) -> str:
+        """The declared range, shape and unit, in words (the descriptor's constraints)."""
+        parts = []
+        if self.choices:
+            parts.append(" | ".join(self.choices))
+        if self.minimum is not None:
+            parts.append(f"{'>' if self.exclusive else '>='} {self.minimum:g}")
+        if self.type == "numbers":
+            parts.append("one value or one per joint")
+        if self.unit:
+            parts.append(f"[{self.unit}]")
+        return ", ".join(parts)
+
+    def check(self, value: Any, n: int | None = None) -> Any:
+        """``value`` converted and checked against this declaration: a float, a per-joint
+        array (with ``n``: broadcast to n joints; without: the list as given), a string, a
+        bool or a tuple of names. Raises ValueError with the reason."""
+        name, kind = self.name, self.type
+        if kind == "flag":
+            if not isinstance(value, bool):
+                raise ValueError(f"'{name}' must be true or false, got {value!r}")
+            return value
+        if kind == "text":
+            if not isinstance(value, str):
+                raise ValueError(f"'{name}' must be a string, got {value!r}")
+            if self.choices and value not in self.choices:
+                raise ValueError(f"'{name}' is '{value}'; allowed: {', '.join(self.choices)}")
+            return value
+        if kind == "names":
+            return names({name: value}, name)
+        if kind == "number":
+            bound = "" if self.minimum is None else f" {self.constraints.split(',')[0]}"
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"'{name}' must be a number{bound}, got {value!r}")
+            if not self._within(np.array([value])):
+                raise ValueError(f"'{name}' must be a number{bound}, got {value!r}")
+            if not np.isfinite(value):
+                raise ValueError(f"'{name}' must be finite")
+            return float(value)
+        items = numbers({name: value}, name)
+        arr = per_joint(items, n, name) if n is not None else np.array(items)
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"'{name}' must be finite, got {arr.tolist()}")
+        if not self._within(arr):
+            raise ValueError(
+                f"'{name}' must be {self.constraints.split(',')[0]}, got {arr.tolist()}"
+            )
+        return arr
+
+    def _within(self, arr: np.ndarray) -> bool:
+        if self.minimum is None:
+            return True
+        return bool(np.all(arr > self.minimum) if self.exclusive else np.all(arr >= self.minimum))
+
+
+class ParamValues(dict):
+    """Parameter values by name, with the declarations they are checked against."""
+
+    def __init__(self, specs: Iterable[ParamSpec], items: Mapping[str, Any]) -> None:
+        super().__init__(items)
+        self.specs = {spec.name: spec for spec in specs}
+
+
+def value(values: ParamValues, name: str, n: int | None = None) -> Any:
+    """The value of ``name`` checked against its declaration (:meth:`ParamSpec.check`)."""
+    return values.specs[name].check(values[name], n)
 
 
 def declare(node: Node, specs: Iterable[ParamSpec]) -> None:
@@ -36,17 +130,19 @@ def declare(node: Node, specs: Iterable[ParamSpec]) -> None:
             spec.default,
             ParameterDescriptor(
                 description=spec.description,
+                additional_constraints=spec.constraints,
                 read_only=spec.read_only,
-                dynamic_typing=spec.dynamic,
+                dynamic_typing=spec.dynamic or spec.type in ("numbers", "names"),
             ),
         )
 
 
-def current_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
-    return {spec.name: node.get_parameter(spec.name).value for spec in specs}
+def current_values(node: Node, specs: Iterable[ParamSpec]) -> ParamValues:
+    specs = tuple(specs)
+    return ParamValues(specs, {spec.name: node.get_parameter(spec.name).value for spec in specs})
 
 
-def with_changes(node: Node, specs: Iterable[ParamSpec], changes: Iterable[Any]) -> dict[str, Any]:
+def with_changes(node: Node, specs: Iterable[ParamSpec], changes: Iterable[Any]) -> ParamValues:
     """The values the node would have after a parameter update (not applied yet)."""
     values = current_values(node, specs)
     for p in changes:
@@ -78,32 +174,6 @@ def names(values: Mapping[str, Any], name: str) -> tuple[str, ...]:
     return tuple(items)
 
 
-def choice(values: Mapping[str, Any], name: str, allowed: Iterable[str]) -> str:
-    allowed = tuple(allowed)
-    value = values[name]
-    if value not in allowed:
-        raise ValueError(f"'{name}' is '{value}'; allowed: {', '.join(allowed)}")
-    return value
-
-
-def positive(values: Mapping[str, Any], name: str) -> float:
-    value = values[name]
-    if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
-        raise ValueError(f"'{name}' must be a number > 0, got {value!r}")
-    if not np.isfinite(value):
-        raise ValueError(f"'{name}' must be finite")
-    return float(value)
-
-
-def nonnegative_number(values: Mapping[str, Any], name: str) -> float:
-    value = values[name]
-    if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
-        raise ValueError(f"'{name}' must be a number >= 0, got {value!r}")
-    if not np.isfinite(value):
-        raise ValueError(f"'{name}' must be finite")
-    return float(value)
-
-
 #: ``robot:=topic`` reads the description from the latched ``robot_description`` topic.
 ROBOT_FROM_TOPIC = "topic"
 
@@ -131,28 +201,33 @@ ROBOT_PARAMETERS = (
         "Extra folders for package:// URIs (a package folder or a folder of packages), "
         "searched after the ament index and ROS_PACKAGE_PATH",
         read_only=True,
-        dynamic=True,
+        kind="names",
     ),
     ParamSpec(
         "description_timeout",
         10.0,
-        "robot:=topic: how long to wait for the robot_description topic [s], > 0",
+        "robot:=topic: how long to wait for the robot_description topic",
         read_only=True,
+        unit="s",
+        minimum=0.0,
+        exclusive=True,
     ),
     ParamSpec(
         "joints",
         [],
         "Joints in the node's order (default: the robot's actuated joints)",
         read_only=True,
-        dynamic=True,
+        kind="names",
     ),
     ParamSpec(
         "effort_limits",
         [],
-        "Effort limits [N·m or N], one value or one per joint, > 0; overrides the URDF "
-        "(needed where it says 0 or nothing); empty: the URDF's",
+        "Effort limits; override the URDF (needed where it says 0 or nothing); empty: the URDF's",
         read_only=True,
-        dynamic=True,
+        kind="numbers",
+        unit="N·m or N",
+        minimum=0.0,
+        exclusive=True,
     ),
 )
 
@@ -169,22 +244,20 @@ def robot_model(
     if robot == ROBOT_FROM_TOPIC:
         if node is None:
             raise ValueError("robot:=topic needs a node to read the robot_description topic")
-        text, robot = description_from_topic(node, positive(values, "description_timeout")), ""
-    if not isinstance(values["xacro_args"], str):
-        raise ValueError(f"'xacro_args' must be a string, got {values['xacro_args']!r}")
+        text, robot = description_from_topic(node, value(values, "description_timeout")), ""
     spec = resolve_robot(
         robot,
         urdf if not text else "",
         robot_description=text,
-        xacro_args=values["xacro_args"],
-        package_paths=names(values, "package_paths"),
+        xacro_args=value(values, "xacro_args"),
+        package_paths=value(values, "package_paths"),
     )
     limits = values["effort_limits"]
     model = RobotModel(
         spec,
-        names(values, "joints") or None,
+        value(values, "joints") or None,
         perturbation,
-        effort_limits=numbers(values, "effort_limits") if np.size(limits) else None,
+        effort_limits=value(values, "effort_limits") if np.size(limits) else None,
     )
     if node is not None:
         for warning in (*spec.warnings, *model.warnings):

@@ -27,13 +27,11 @@ from joint_space_control.ros.messages import (
     state_message,
     trajectory_from_msg,
 )
-from joint_space_control.ros.parameters import (
-    choice,
-    names,
-    nonnegative_number,
-    numbers,
-    positive,
-)
+from joint_space_control.ros.parameters import ParamSpec, names, numbers
+
+MODE = ParamSpec("mode", "full", "", choices=("full", "none", "desired"))
+RATE = ParamSpec("rate", 1.0, "", minimum=0.0, exclusive=True)
+F = ParamSpec("f", 0.0, "", minimum=0.0)
 
 JOINTS = ("j1", "j2", "j3")
 
@@ -338,14 +336,14 @@ def test_names():
 
 
 def test_choice():
-    assert choice({"mode": "full"}, "mode", ["full", "none", "desired"]) == "full"
+    assert MODE.check("full") == "full"
     with pytest.raises(ValueError, match="'mode' is 'half'; allowed: full, none, desired"):
-        choice({"mode": "half"}, "mode", ("full", "none", "desired"))
+        MODE.check("half")
 
 
 @pytest.mark.parametrize("value", [1, 0.5, 1e9])
 def test_positive_accepts(value):
-    out = positive({"rate": value}, "rate")
+    out = RATE.check(value)
     assert out == float(value) and type(out) is float
 
 
@@ -364,12 +362,12 @@ def test_positive_accepts(value):
 )
 def test_positive_rejects(value, match):
     with pytest.raises(ValueError, match=match):
-        positive({"rate": value}, "rate")
+        RATE.check(value)
 
 
 @pytest.mark.parametrize("value", [0, 0.0, 2, 3.5])
 def test_nonnegative_number_accepts(value):
-    assert nonnegative_number({"f": value}, "f") == float(value)
+    assert F.check(value) == float(value)
 
 
 @pytest.mark.parametrize(
@@ -378,7 +376,7 @@ def test_nonnegative_number_accepts(value):
 )
 def test_nonnegative_number_rejects(value, match):
     with pytest.raises(ValueError, match=match):
-        nonnegative_number({"f": value}, "f")
+        F.check(value)
 
 
 def test_config_message_is_strict_json_of_parameter_values():

@@ -128,3 +128,36 @@ def test_the_checker_sees_a_wrong_default():
     default, _ = rows["sim_bridge"]["command_timeout"]
     assert same_default(default, 0.1) and not same_default(default, 0.2)
     assert set(rows) >= {"every node", *NODES}  # every node's table was found
+
+
+@pytest.mark.parametrize("node", list(NODES))
+def test_every_default_satisfies_its_own_declaration(node):
+    for spec in NODES[node]:
+        if spec.type in ("numbers", "names") and not spec.default:
+            continue  # empty: "not given" (the URDF's limits, every topic, ...)
+        spec.check(spec.default, 3)
+
+
+@pytest.mark.parametrize("node", list(NODES))
+def test_a_value_outside_the_declared_range_is_refused_with_its_name(node):
+    """The range is enforced where it is declared: below the minimum (or at it, when
+    exclusive) and non-finite values are refused, one value or per joint."""
+    checked = 0
+    for spec in NODES[node]:
+        if spec.minimum is None:
+            continue
+        bad = spec.minimum if spec.exclusive else spec.minimum - 1.0
+        for value in (bad, float("nan"), [1.0, bad, 1.0] if spec.type == "numbers" else bad):
+            with pytest.raises(ValueError, match=f"'{spec.name}'"):
+                spec.check(value, 3 if spec.type == "numbers" else None)
+        checked += 1
+    assert checked > 0  # every node declares ranged parameters
+
+
+def test_constraints_are_generated_from_the_declaration():
+    spec = NODES["sim_bridge"][[s.name for s in SIM_BRIDGE].index("max_torque_rate")]
+    assert spec.constraints == ">= 0, one value or one per joint, [N·m/s]"
+    rate = next(s for s in COMMON_PARAMETERS if s.name == "rate")
+    assert rate.constraints == "> 0, [Hz]"
+    trigger = next(s for s in COMMON_PARAMETERS if s.name == "trigger")
+    assert trigger.constraints == "auto | timer | state"
