@@ -52,6 +52,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
+from joint_space_control.laws.limits import beyond_bound
 from joint_space_control.ros import parameters as params
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
@@ -158,6 +159,7 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
         **NONNEGATIVE,
     ),
     params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
+    params.REJECT_FACTOR,
 )
 
 
@@ -180,6 +182,7 @@ class SimBridge(Node):
         self.physics_dt_ns = round(1e9 / physics_rate)
         self.period_ns = substeps * self.physics_dt_ns
         self.command_timeout = params.value(v, "command_timeout")
+        self.reject_factor = params.value(v, "reject_factor")
         republish = params.value(v, "republish_period")
         self.plant = Plant(
             spec,
@@ -268,6 +271,7 @@ class SimBridge(Node):
             friction = params.value(values, "viscous_friction", self.n)
             payload = params.value(values, "payload_mass")
             timeout = params.value(values, "command_timeout")
+            reject_factor = params.value(values, "reject_factor")
             pause_at = self._pause_time(values)
             max_rate = params.value(values, "max_torque_rate", self.n)
         except ValueError as err:
@@ -279,6 +283,7 @@ class SimBridge(Node):
             if payload != self.plant.payload_mass:
                 self.plant.set_payload(payload)
             self.command_timeout = timeout
+            self.reject_factor = reject_factor
             if any(p.name == "pause_at" for p in changes):
                 self._pause_at_ns = pause_at
         return SetParametersResult(successful=True)
@@ -406,6 +411,8 @@ class SimBridge(Node):
             self.counts["rejected.commands"] += 1
             self.get_logger().warning(f"rejected effort command: {err}", throttle_duration_sec=1.0)
             return
+        if self._absurd(tau):
+            return
         self._command(tau, stamp, received)
 
     def _on_array(self, msg: Float64MultiArray, info: Any) -> None:
@@ -416,7 +423,22 @@ class SimBridge(Node):
             self.counts["rejected.commands"] += 1
             self.get_logger().warning(f"rejected command array: {err}", throttle_duration_sec=1.0)
             return
+        if self._absurd(tau):
+            return
         self._command(tau, None, received)
+
+    def _absurd(self, tau: np.ndarray) -> bool:
+        """A command beyond ``reject_factor`` × the effort limits: rejected and counted (its
+        sender is broken; clamping would apply the limit as if it meant it)."""
+        if not beyond_bound(tau, self.plant.effort_limits, self.reject_factor):
+            return False
+        self.counts["rejected.commands"] += 1
+        self.get_logger().warning(
+            f"rejected command {tau.tolist()}: beyond {self.reject_factor:g} × the effort "
+            f"limits {self.plant.effort_limits.tolist()} (reject_factor)",
+            throttle_duration_sec=1.0,
+        )
+        return True
 
     def _command(self, tau: np.ndarray, stamp_ns: int | None, received: int) -> None:
         with self._lock:

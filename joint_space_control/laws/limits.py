@@ -22,3 +22,9 @@ def limit_rate(target: np.ndarray, previous: np.ndarray, max_step: np.ndarray) -
     """``target``, moved from ``previous`` by at most ``max_step`` per joint (exactly
     ``target`` where it is within reach, and always where ``max_step`` is inf)."""
     return np.clip(target, previous - max_step, previous + max_step)
+
+
+def beyond_bound(tau: np.ndarray, limits: np.ndarray, factor: float) -> bool:
+    """True when some |τ_i| exceeds ``factor`` × its effort limit: not a torque to clamp but
+    a sign that its sender is broken (no bound where the limit is inf)."""
+    return bool(np.any(np.abs(tau) > factor * np.asarray(limits)))

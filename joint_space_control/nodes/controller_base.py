@@ -54,6 +54,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from joint_space_control.control.controller import Controller, Step
 from joint_space_control.laws.gains import DEFAULT_OMEGA_N, DEFAULT_ZETA, GainChoice, choose_gains
+from joint_space_control.laws.limits import beyond_bound
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.ros import parameters as params
 from joint_space_control.ros.control_path import ControlPath
@@ -83,6 +84,7 @@ COUNTERS = (
     "dropped.nonfinite_torques",
     "stale.stops",
     "restarts",
+    "beyond_bound.torques",
 )
 
 COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
@@ -169,6 +171,7 @@ COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
         minimum=0.0,
     ),
     params.ParamSpec("model_gravity", True, "Controller model: false models no gravity (ĝ ≡ 0)"),
+    params.REJECT_FACTOR,
 )
 MODEL_PARAMETERS = ("model_mass_scale", "model_payload_mass", "model_friction", "model_gravity")
 
@@ -219,6 +222,7 @@ class JointController(Node):
         self.core = self.CORE(self.build_config(values, self.model), self.effort_limits)
         self._values = values  # the parameter values in force
         self._state_timeout = params.value(values, "state_timeout")
+        self._reject_factor = params.value(values, "reject_factor")
         self._lock = threading.Lock()  # parameter updates wait for the end of a tick
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -322,10 +326,12 @@ class JointController(Node):
             model = self._model_for(values)
             config = self.build_config(values, model)
             timeout = params.value(values, "state_timeout")
+            reject_factor = params.value(values, "reject_factor")
             with self._lock:  # between two ticks
                 self.core.set_config(config)  # swapped whole; a tick reads it once
                 self.model, self._perturbation = model, model_perturbation(values)
                 self._state_timeout = timeout
+                self._reject_factor = reject_factor
                 self._values = values
         except ValueError as err:
             self.counts["rejected.parameters"] += 1
@@ -527,6 +533,15 @@ class JointController(Node):
                     throttle_duration_sec=1.0,
                 )
                 return -1
+            if beyond_bound(step.unclamped, self.effort_limits, self._reject_factor):
+                # legitimate at saturation (still clamped and sent), but a law this far
+                # beyond the limits points at a bug or a broken input: counted, said
+                self.counts["beyond_bound.torques"] += 1
+                self.get_logger().warning(
+                    f"computed torque {step.unclamped.tolist()} beyond {self._reject_factor:g}"
+                    " × the effort limits (reject_factor): clamped",
+                    throttle_duration_sec=1.0,
+                )
             listening = self._state_pub.get_subscription_count() > 0  # else: nothing to build
             fill_images(
                 self._command,

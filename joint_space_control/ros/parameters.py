@@ -174,6 +174,16 @@ def names(values: Mapping[str, Any], name: str) -> tuple[str, ...]:
     return tuple(items)
 
 
+#: Torques beyond this multiple of the effort limits are faults (sim_bridge rejects such a
+#: command; a controller counts such a computed torque, which it still clamps and sends).
+REJECT_FACTOR = ParamSpec(
+    "reject_factor",
+    2.0,
+    "A torque beyond this multiple of the effort limit is a fault: sim_bridge rejects the "
+    "command (between the limit and the bound it is clamped), a controller counts it",
+    minimum=1.0,
+)
+
 #: ``robot:=topic`` reads the description from the latched ``robot_description`` topic.
 ROBOT_FROM_TOPIC = "topic"
 

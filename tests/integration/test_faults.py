@@ -198,6 +198,8 @@ def test_controller_rejects_bad_states_references_and_parameters(rig):
     )
     assert status["rejected.joint_states"] == len(bad_states)
     assert status["dropped.nonfinite_torques"] == 1
+    # q̇ = ±1e3 rad/s: the law asked for far more than 2 × the limits (clamped, but counted)
+    assert status["beyond_bound.torques"] == 1
     assert status["rejected.parameters"] == 2
     assert status["commanding"] == 1
     # still running on the last valid data: a new valid state is answered
@@ -237,7 +239,13 @@ def test_plant_rejects_bad_commands_and_parameters_and_limits_the_torque(rig):
     assert status["rejected.commands"] == len(bad) + 2
     assert probe.latest_time() == 0.0  # no step was taken
 
-    efforts.publish(command(0, effort=(1e9, -1e9)))
+    # 5·10⁵ × the limit: a broken sender, rejected (reject_factor 2), not clamped
+    rig.send(efforts, command(0, effort=(1e9, -1e9)))
+    status = rig.diagnostics("sim_bridge", lambda s: s["rejected.commands"] >= len(bad) + 3)
+    assert status["rejected.commands"] == len(bad) + 3
+    assert probe.latest_time() == 0.0  # no step was taken
+    # 1.5 × the limit: between the limit and the bound, clamped as before
+    efforts.publish(command(0, effort=(3000.0, -1500.0)))
     probe.run_until(0.001, 20.0, rig.group.check_alive)
     _, _, _, tau = probe.recording.arrays()
     np.testing.assert_array_equal(tau[-1], [2000.0, -1000.0])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from joint_space_control.laws.limits import limit_rate, rate_steps
+from joint_space_control.laws.limits import beyond_bound, limit_rate, rate_steps
 from joint_space_control.model.robots import resolve_robot
 from sim_bridge.plant import Plant
 
@@ -71,3 +71,12 @@ def test_plant_rejects_invalid_rate_limits():
             plant.set_torque_rate_limit([-1.0, 0.0])
     finally:
         plant.close()
+
+
+def test_beyond_bound_is_a_multiple_of_the_limits_and_never_for_unlimited_joints():
+    limits = np.array([2000.0, 1000.0, np.inf])
+    assert not beyond_bound(np.array([4000.0, -2000.0, 1e300]), limits, 2.0)  # at the bound
+    assert beyond_bound(np.array([4000.1, 0.0, 0.0]), limits, 2.0)
+    assert beyond_bound(np.array([0.0, -2000.1, 0.0]), limits, 2.0)
+    assert not beyond_bound(np.array([2500.0, 0.0, 0.0]), limits, 2.0)  # clamped, not rejected
+    assert beyond_bound(np.array([2500.0, 0.0, 0.0]), limits, 1.0)
