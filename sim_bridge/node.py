@@ -461,6 +461,16 @@ class SimBridge(Node):
 
     # -- realtime ----------------------------------------------------------------------
     def _realtime_loop(self) -> None:
+        """:meth:`_run_realtime` until the node closes. A signal (Ctrl-C, SIGTERM) shuts the
+        context down from the main thread while this thread may be publishing: that ends
+        the loop quietly, the main thread then closes the node (no traceback on a stop)."""
+        try:
+            self._run_realtime()
+        except Exception:
+            if self.context.ok():
+                raise
+
+    def _run_realtime(self) -> None:
         """Physics at ``physics_rate`` on the wall clock: tick k starts at t0 + k·dt (or as
         soon after as the machine allows; a tick more than 100 ms behind restarts the
         schedule instead of catching up)."""
