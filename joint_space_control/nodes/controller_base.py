@@ -206,8 +206,7 @@ class JointController(Node):
         self._specs = COMMON_PARAMETERS + self.LAW_PARAMETERS
         params.declare(self, self._specs)
         values = params.current_values(self, self._specs)
-        self._perturbation = model_perturbation(values)
-        self.model = params.robot_model(values, self._perturbation, self)
+        self.model = params.robot_model(values, model_perturbation(values), self)
         spec = self.model.spec
         self.joints = self.model.joint_names
         self.n = len(self.joints)
@@ -329,7 +328,7 @@ class JointController(Node):
             reject_factor = params.value(values, "reject_factor")
             with self._lock:  # between two ticks
                 self.core.set_config(config)  # swapped whole; a tick reads it once
-                self.model, self._perturbation = model, model_perturbation(values)
+                self.model = model
                 self._state_timeout = timeout
                 self._reject_factor = reject_factor
                 self._values = values

@@ -55,13 +55,20 @@ class ParamSpec:
         raise TypeError(f"parameter '{self.name}': give kind='numbers' or 'names'")
 
     @property
+    def bound(self) -> str:
+        """The declared range in words ("> 0", ">= 1"), "" when there is none."""
+        if self.minimum is None:
+            return ""
+        return f"{'>' if self.exclusive else '>='} {self.minimum:g}"
+
+    @property
     def constraints(self) -> str:
         """The declared range, shape and unit, in words (the descriptor's constraints)."""
         parts = []
         if self.choices:
             parts.append(" | ".join(self.choices))
-        if self.minimum is not None:
-            parts.append(f"{'>' if self.exclusive else '>='} {self.minimum:g}")
+        if self.bound:
+            parts.append(self.bound)
         if self.type == "numbers":
             parts.append("one value or one per joint")
         if self.unit:
@@ -86,7 +93,7 @@ class ParamSpec:
         if kind == "names":
             return names({name: value}, name)
         if kind == "number":
-            bound = "" if self.minimum is None else f" {self.constraints.split(',')[0]}"
+            bound = f" {self.bound}" if self.bound else ""
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ValueError(f"'{name}' must be a number{bound}, got {value!r}")
             if not self._within(np.array([value])):
@@ -99,9 +106,7 @@ class ParamSpec:
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"'{name}' must be finite, got {arr.tolist()}")
         if not self._within(arr):
-            raise ValueError(
-                f"'{name}' must be {self.constraints.split(',')[0]}, got {arr.tolist()}"
-            )
+            raise ValueError(f"'{name}' must be {self.bound}, got {arr.tolist()}")
         return arr
 
     def _within(self, arr: np.ndarray) -> bool:
