@@ -131,11 +131,20 @@ def find_package(name: str, package_paths: Iterable[str] = ()) -> Path | None:
     return None
 
 
-def resolve_uri(uri: str, base_dir: Path | None, package_paths: Iterable[str] = ()) -> Path | None:
-    """The file a mesh URI names, or None when it cannot be found."""
+def resolve_uri(
+    uri: str,
+    base_dir: Path | None,
+    package_paths: Iterable[str] = (),
+    packages: dict[str, Path | None] | None = None,
+) -> Path | None:
+    """The file a mesh URI names, or None when it cannot be found (``packages``: package
+    folders already looked up, filled as it goes)."""
     parsed = urlparse(uri)
     if parsed.scheme == "package":
-        root = find_package(parsed.netloc, package_paths)
+        packages = {} if packages is None else packages
+        if parsed.netloc not in packages:
+            packages[parsed.netloc] = find_package(parsed.netloc, package_paths)
+        root = packages[parsed.netloc]
         path = root / unquote(parsed.path).lstrip("/") if root is not None else None
     elif parsed.scheme == "file":
         path = Path(unquote(parsed.netloc + parsed.path))
@@ -162,9 +171,10 @@ def resolve_meshes(
     root = etree.fromstring(text.encode("utf-8"))
     missing: list[str] = []
     changed = False
+    packages: dict[str, Path | None] = {}  # one look-up per package, not per mesh
     for mesh in root.iter("mesh"):
         uri = mesh.get("filename", "")
-        path = resolve_uri(uri, base_dir, package_paths)
+        path = resolve_uri(uri, base_dir, package_paths, packages)
         if path is None:
             missing.append(uri)
             block = mesh.getparent()
