@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from joint_space_control.analysis.bag import ControllerState
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
 
@@ -37,6 +38,9 @@ class RunView:
     controller: dict  # the controller's metrics (metrics.json)
     events: list[dict]
     parameters: dict
+    plant: dict = field(default_factory=dict)  # the run's sim_bridge parameters
+    executable: str = ""  # the controller executable
+    state: ControllerState | None = None  # its recorded ~/state, for signal checks
 
 
 def _joints(c: dict) -> list[str]:

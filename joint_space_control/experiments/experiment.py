@@ -2,7 +2,8 @@
 
 Files per experiment ``<out>/<name>/``: one run directory per variant (``bag/``,
 ``report/``, ``logs/``, ``events.json``), ``result.json`` (the checks with their numbers),
-``summary.md``, and ``sweep.png`` for a sweep.
+``summary.md``, ``sweep.png`` for a sweep, and the figures the scenario names (``figures``,
+:mod:`~joint_space_control.experiments.figures`).
 """
 
 from __future__ import annotations
@@ -10,10 +11,11 @@ from __future__ import annotations
 import math
 import shutil
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from joint_space_control.analysis.report import write_metrics
+from joint_space_control.experiments import figures
 from joint_space_control.experiments.checks import Outcome, RunView, evaluate
 from joint_space_control.experiments.runner import RunResult, run_scenario
 from joint_space_control.experiments.scenario import Scenario
@@ -26,6 +28,8 @@ class ExperimentResult:
     runs: list[RunResult]
     outcomes: list[Outcome]
     errors: list[str]
+    figures: list[Path] = field(default_factory=list)
+    """The scenario's own figures (experiments/figures.py), drawn first on the page."""
 
     @property
     def passed(self) -> bool | None:
@@ -49,7 +53,16 @@ def run_experiment(
     runs = run_scenario(scenario, out, short, jobs, log)
     errors = [f"{r.label}: {r.error}" for r in runs if r.error]
     views = [
-        RunView(r.label, r.scenario.robot, r.controller, r.events, r.scenario.parameters)
+        RunView(
+            r.label,
+            r.scenario.robot,
+            r.controller,
+            r.events,
+            r.scenario.parameters,
+            r.scenario.plant,
+            r.scenario.controller,
+            r.state,
+        )
         for r in runs
         if r.error is None
     ]
@@ -63,6 +76,8 @@ def run_experiment(
     result = ExperimentResult(scenario, out, runs, outcomes, errors)
     if scenario.variants is not None and views:
         _sweep_plot(result, out / "sweep.png")
+    if views:
+        result.figures = figures.draw(result)
     write_metrics(_result_json(result, short), out / "result.json")
     (out / "summary.md").write_text(summary_markdown(result, out))
     return result
@@ -130,12 +145,13 @@ def _relative(path: Path, base: Path) -> str:
 
 
 def _key_plots(result: ExperimentResult) -> list[Path]:
+    ok = [r for r in result.runs if r.error is None]
     sweep = result.out / "sweep.png"
     if sweep.is_file():
-        ok = [r for r in result.runs if r.error is None]
-        return [sweep] + ([ok[-1].out / "report" / "positions.png"] if ok else [])
-    ok = [r for r in result.runs if r.error is None]
-    return [ok[0].out / "report" / "positions.png"] if ok else []
+        standard = [sweep] + ([ok[-1].out / "report" / "positions.png"] if ok else [])
+    else:
+        standard = [ok[0].out / "report" / "positions.png"] if ok else []
+    return result.figures + standard
 
 
 def _sweep_plot(result: ExperimentResult, path: Path) -> None:

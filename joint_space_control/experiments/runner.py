@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from joint_space_control.analysis.bag import ControllerState
 from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
 from joint_space_control.experiments.loop import ClosedLoop
@@ -36,6 +37,8 @@ class RunResult:
     metrics: dict | None = None
     events: list[dict[str, Any]] = field(default_factory=list)
     error: str | None = None
+    state: ControllerState | None = None
+    """The controller's recorded ``~/state`` as analysed (for checks that need signals)."""
 
     @property
     def controller(self) -> dict:
@@ -123,7 +126,12 @@ def run_once(scenario: Scenario, out: Path, short: bool, result: RunResult) -> N
             with _active_lock:
                 _active.discard(loop)
     (out / "events.json").write_text(json.dumps(result.events, indent=1))
-    result.metrics = analyze_bag_to(out / "report", bag).metrics
+    analysis = analyze_bag_to(out / "report", bag)
+    result.metrics = analysis.metrics
+    node = f"/{scenario.controller}"
+    result.state = next(
+        (c.state for c in analysis.analysis.controllers if c.metrics["node"] == node), None
+    )
 
 
 def _drive(loop: ClosedLoop, scenario: Scenario, duration: float, result: RunResult) -> None:

@@ -17,12 +17,14 @@ changes:                                   # optional, at simulation times (lock
   - {at: 4.0, controller: {gravity_compensation: full}}
   - {at: 8.0, plant: {payload_mass: 5.0}}
   - {at: 12.0, update: iterative_gravity}  # u ← u + K_P (q_d − q), from the measured q
+figures: [overlay]                         # optional extra figures (experiments/figures.py)
 variants:                                  # optional: one run per value (a sweep)
   name: omega                              # label of the swept quantity
   key: reference.omega                     # what each value replaces
   values: [0.5, 1.0, 2.0]
   # or several settings per run:
   # runs: [{label: id, set: {parameters.law: inverse_dynamics, parameters.omega_n: 10}}]
+  # (``controller: inverse_dynamics_controller`` in ``set`` switches the executable)
 checks: [...]                              # theory checks, see experiments/checks.py
 ```
 
@@ -40,6 +42,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from joint_space_control.experiments.figures import FIGURES
 from joint_space_control.paths import experiments_dir
 from joint_space_control.trajectories import shapes
 from joint_space_control.trajectories.reference import Trajectory
@@ -60,6 +63,7 @@ _TOP_KEYS = {
     "changes",
     "variants",
     "checks",
+    "figures",
     "notes",
 }
 
@@ -102,6 +106,8 @@ class Scenario:
     variants: Variants | None
     checks: list[dict[str, Any]]
     notes: str = ""
+    figures: tuple[str, ...] = ()
+    """Extra figures of the experiment (experiments/figures.py), beside the standard ones."""
 
     def run_duration(self, short: bool) -> float:
         return self.short_duration if short else self.duration
@@ -110,13 +116,17 @@ class Scenario:
         return [c for c in self.changes if c.at < duration]
 
     def with_settings(self, label: str, settings: dict[str, Any]) -> Scenario:
-        """The scenario with ``{"section.name": value}`` applied (and no variants)."""
-        data = {
+        """The scenario with ``{"section.name": value}`` applied (and no variants);
+        ``controller`` (no section) replaces the controller executable."""
+        data: dict[str, Any] = {
             "plant": copy.deepcopy(self.plant),
             "parameters": copy.deepcopy(self.parameters),
             "reference": copy.deepcopy(self.reference),
         }
         for key, value in settings.items():
+            if key == "controller":
+                data["controller"] = value
+                continue
             section, _, name = key.partition(".")
             data[section][name] = value
         return Scenario(
@@ -140,10 +150,16 @@ def _label(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def _settings_key(key: str, what: str) -> str:
+def _settings_key(key: str, what: str, value: Any = None) -> str:
+    if key == "controller":
+        if value not in CONTROLLERS:
+            raise ValueError(f"{what}: 'controller' must be one of {CONTROLLERS}, got {value!r}")
+        return key
     section, _, field_name = key.partition(".")
     if section not in ("plant", "parameters", "reference") or not field_name:
-        raise ValueError(f"{what}: keys must be plant.X, parameters.X or reference.X: {key!r}")
+        raise ValueError(
+            f"{what}: keys must be controller, plant.X, parameters.X or reference.X: {key!r}"
+        )
     return key
 
 
@@ -243,8 +259,8 @@ def parse(data: Any, name: str, path: Path) -> Scenario:
             for k, run in enumerate(raw_runs):
                 run = _mapping(run, f"variants.runs[{k}]")
                 settings = _mapping(run.get("set"), f"variants.runs[{k}].set")
-                for key in settings:
-                    _settings_key(key, f"variants.runs[{k}].set")
+                for key, value in settings.items():
+                    _settings_key(key, f"variants.runs[{k}].set", value)
                 runs.append((str(run.get("label", k)), settings))
         labels = [label for label, _ in runs]
         if len(set(labels)) != len(labels):
@@ -267,10 +283,18 @@ def parse(data: Any, name: str, path: Path) -> Scenario:
         variants=variants,
         checks=[_mapping(c, "checks[]") for c in data.get("checks") or []],
         notes=str(data.get("notes", "")),
+        figures=_figures(data.get("figures")),
     )
     for _, run in scenario.runs():
         build_reference(run.reference, None, run.duration)  # fails early on a bad reference
     return scenario
+
+
+def _figures(value: Any) -> tuple[str, ...]:
+    names = [] if value is None else value
+    if not isinstance(names, list) or any(n not in FIGURES for n in names):
+        raise ValueError(f"'figures' must be a list of {sorted(FIGURES)}, got {value!r}")
+    return tuple(names)
 
 
 _REFERENCE_KEYS = {

@@ -52,6 +52,28 @@ def test_variants_replace_the_named_settings():
     assert [r.parameters["omega_n"] for _, r in sweep.runs()] == [5.0, 10.0, 20.0, 40.0, 80.0]
 
 
+def test_a_variant_may_switch_the_controller_executable():
+    s = parse(
+        {
+            **MINIMAL,
+            "figures": ["overlay"],
+            "variants": {
+                "runs": [
+                    {"label": "pd"},
+                    {"label": "id", "set": {"controller": "inverse_dynamics_controller"}},
+                ]
+            },
+        },
+        "cmp",
+        Path("cmp.yaml"),
+    )
+    runs = dict(s.runs())
+    assert runs["pd"].controller == "pd_gravity_controller"
+    assert runs["id"].controller == "inverse_dynamics_controller"
+    assert s.controller == "pd_gravity_controller"  # the scenario itself is not changed
+    assert s.figures == ("overlay",)
+
+
 @pytest.mark.parametrize(
     ("change", "match"),
     [
@@ -66,6 +88,9 @@ def test_variants_replace_the_named_settings():
         ({"changes": [{"at": 1.0, "update": "guess"}]}, "'update' must be one of"),
         ({"variants": {"key": "gains.kp", "values": [1]}}, "plant.X, parameters.X"),
         ({"variants": {"key": "parameters.kp", "values": []}}, "non-empty list"),
+        ({"variants": {"runs": [{"set": {"controller": "lqr"}}]}}, "'controller' must be"),
+        ({"figures": ["spiral"]}, "'figures' must be a list of"),
+        ({"figures": "overlay"}, "'figures' must be a list of"),
     ],
 )
 def test_invalid_scenarios_are_refused_with_a_reason(change, match):
