@@ -50,6 +50,7 @@ from joint_space_control.recording.bag_writer import (
     RecordedTopic,
 )
 from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection
+from joint_space_control.ros import node_main
 from joint_space_control.ros import parameters as params
 from joint_space_control.ros.control_path import ControlPath, spin_node
 
@@ -286,7 +287,7 @@ def _importable(msgtype: str) -> bool:
 def main(args: list[str] | None = None) -> None:
     """Record until Ctrl-C or SIGTERM, then take what the subscriptions still hold (messages
     delivered before the signal are not lost) and close the bag."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node_main.init(args, signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
     recorder: list[Recorder] = []
     stopped_at = [0]  # system clock [ns]: what was received until then is written

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import re
 import sys
 from collections.abc import Callable
+from typing import Any
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -14,16 +16,35 @@ from rclpy.node import Node
 from joint_space_control.ros.control_path import spin_node
 
 
+def init_error(err: BaseException) -> str:
+    """rcl's initialisation error in one line, without its C source locations:
+    ``failed to initialize rcl: Couldn't parse params file: '--params-file x.yaml'. Error:
+    Error parsing a event near line 3, at /project/src/parse.c:782, at ...``."""
+    text = " ".join(str(err).split())
+    return re.sub(r",? at /\S+:\d+", "", text).removeprefix("failed to initialize rcl: ")
+
+
+def init(args: list[str] | None, **kwargs: Any) -> None:
+    """``rclpy.init``; a malformed or missing ``--params-file`` or bad ``--ros-args`` is one
+    line on stderr and exit code 2 (rclpy raises RCLError with C source locations)."""
+    try:
+        rclpy.init(args=args, **kwargs)
+    except _rclpy.RCLError as err:
+        print(f"error: {init_error(err)}", file=sys.stderr)
+        sys.exit(2)
+
+
 def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None:
     """Create the node and spin it until Ctrl-C or SIGTERM (both shut rclpy down cleanly).
 
     A node with a ``control_path`` (:class:`~joint_space_control.ros.control_path.ControlPath`)
     has it served in this thread and everything else by an executor in a second thread.
 
-    A configuration error (unknown robot, invalid parameter at start-up) is reported on one
-    line and ends the process with exit code 2 instead of a traceback.
+    A configuration error (unknown robot, invalid parameter at start-up, a malformed or
+    missing ``--params-file``) is reported on one line and ends the process with exit code 2
+    instead of a traceback.
     """
-    rclpy.init(args=args)
+    init(args)
     node = None
     try:
         try:

@@ -128,7 +128,14 @@ def value(values: ParamValues, name: str, n: int | None = None) -> Any:
     return values.specs[name].check(values[name], n)
 
 
+#: Parameters every node has besides its own (rclpy's).
+_ROS_PARAMETERS = ("use_sim_time", "start_type_description_service")
+
+
 def declare(node: Node, specs: Iterable[ParamSpec]) -> None:
+    """Declare the node's parameters; a value given for a parameter the node does not have
+    (a typo in a params file or a ``-p``: ROS ignores it silently) gets one WARN line."""
+    specs = tuple(specs)
     for spec in specs:
         node.declare_parameter(
             spec.name,
@@ -140,6 +147,21 @@ def declare(node: Node, specs: Iterable[ParamSpec]) -> None:
                 dynamic_typing=spec.dynamic or spec.type in ("numbers", "names"),
             ),
         )
+    unknown = unknown_overrides(getattr(node, "_parameter_overrides", {}), specs)
+    if unknown:
+        node.get_logger().warning(
+            f"ignored parameter(s) {', '.join(unknown)}: {node.get_name()} has no such "
+            "parameter (docs/parameters.md lists them)"
+        )
+
+
+def unknown_overrides(overrides: Iterable[str], specs: Iterable[ParamSpec]) -> list[str]:
+    """The names among ``overrides`` (values given at start) that are none of ``specs``, of
+    rclpy's own parameters or of its ``qos_overrides.``, in name order."""
+    known = {spec.name for spec in specs} | set(_ROS_PARAMETERS)
+    return sorted(
+        name for name in overrides if name not in known and not name.startswith("qos_overrides.")
+    )
 
 
 def current_values(node: Node, specs: Iterable[ParamSpec]) -> ParamValues:

@@ -407,3 +407,21 @@ def test_config_message_is_strict_json_of_parameter_values():
         "nested": {"x": 0.5, "raw": "b'\\x01'"},
     }
     assert "NaN" not in msg.data and "Infinity" not in msg.data
+
+
+def test_rcl_init_errors_and_unknown_overrides_are_said_in_words():
+    from joint_space_control.ros.node_main import init_error
+    from joint_space_control.ros.parameters import ParamSpec, unknown_overrides
+
+    err = RuntimeError(
+        "failed to initialize rcl: Couldn't parse params file: '--params-file b.yaml'. "
+        "Error: Error parsing a event near line 3, at /project/src/parse.c:782, at "
+        "/project/src/rcl/arguments.c:415"
+    )
+    assert init_error(err) == (
+        "Couldn't parse params file: '--params-file b.yaml'. Error: Error parsing a event near "
+        "line 3"
+    )
+    specs = (ParamSpec("kp", 0.0, "gain"), ParamSpec("rate", 1.0, "rate"))
+    given = ["rate", "kp_gain", "use_sim_time", "qos_overrides./clock.publisher.depth", "ki"]
+    assert unknown_overrides(given, specs) == ["ki", "kp_gain"]
