@@ -3,6 +3,7 @@
 #   make venv          .venv with ROS 2 Jazzy + deps from PyPI, package installed editable
 #   make test          ruff check, ruff format --check, pytest   (what .ci/run runs first)
 #   make demo          short end-to-end demo into out/demo
+#   make stress        start/stop every executable 20 times with both signals (CI, ~4 min)
 #   make colcon-check  colcon build into build/colcon_ws and check the ament layout
 #   make wheel-check   build the wheel, install it into a fresh venv, run jsc from /tmp
 #   make lint / format / clean
@@ -21,7 +22,7 @@ STAMP := $(VENV)/.install-stamp
 # Console scripts that must land in .venv/bin (checked after the install, see setup.cfg).
 VENV_SCRIPTS := sim_bridge pd_gravity_controller inverse_dynamics_controller trajectory_generator recorder jsc
 
-.PHONY: venv demo test lint format colcon-check wheel-check clean distclean
+.PHONY: venv demo test stress lint format colcon-check wheel-check clean distclean
 
 venv: $(STAMP)
 
@@ -49,6 +50,12 @@ test: venv
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 	$(PY) -m pytest -n 2
+
+# Every executable started and stopped 20 times (SIGINT and SIGTERM) with its topics busy,
+# no traceback in any output (tests/stress, a few minutes; CI runs it after make test). A
+# crash in C code prints its Python stack (faulthandler).
+stress: venv
+	PYTHONFAULTHANDLER=1 $(PY) -m pytest -n 2 tests/stress
 
 lint: venv
 	$(VENV)/bin/ruff check .
