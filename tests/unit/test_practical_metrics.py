@@ -106,3 +106,55 @@ def test_sinusoid_frequency():
         np.column_stack([quintic, still]), np.column_stack([ddquintic, still])
     )
     assert np.all(np.isnan(out))
+
+
+def _state(t, rows, joints=("joint1", "joint2")):
+    from joint_space_control.analysis.bag import ControllerState
+
+    log = 1_000_000_000 + np.round(t * 1e9).astype(np.int64)
+    return ControllerState("/c/state", joints, tuple(rows), t, log, rows)
+
+
+def test_run_metrics_writes_offset_chatter_and_frequency_response():
+    from joint_space_control.analysis.run_metrics import controller_metrics
+    from joint_space_control.laws.second_order import second_order_frequency_response
+
+    # joint1 tracks a sinusoid as the steady state of ω_n = 20, ζ = 0.7 would; joint2 holds
+    # with an offset of 0.01 rad and a torque that alternates by ±0.2 N·m
+    t = np.arange(0.0, 10.0 + 1e-9, 1e-3)
+    w, amp = 3.0, 0.2
+    g = second_order_frequency_response(w, 20.0, 0.7)
+    q_d = np.column_stack([0.5 + amp * np.sin(w * t), np.full(t.size, -0.3)])
+    dq_d = np.column_stack([amp * w * np.cos(w * t), np.zeros(t.size)])
+    ddq_d = np.column_stack([-amp * w * w * np.sin(w * t), np.zeros(t.size)])
+    q = np.column_stack([0.5 + amp * abs(g) * np.sin(w * t + np.angle(g)), np.full(t.size, -0.31)])
+    tau = np.column_stack([np.zeros(t.size), 1.0 + 0.2 * (-1.0) ** np.arange(t.size)])
+    rows = {"q_d": q_d, "dq_d": dq_d, "ddq_d": ddq_d, "q": q, "tau": tau}
+    m = controller_metrics(_state(t, rows))
+    assert m["static_offset"]["mean_error"]["joint2"] == pytest.approx(0.01)
+    assert m["static_offset"]["t_end"] - m["static_offset"]["t_start"] == pytest.approx(0.1)
+    assert m["torque_chatter_rms"] == {"joint1": 0.0, "joint2": pytest.approx(0.4)}
+    (run,) = m["frequency_response"]
+    assert list(run["joints"]) == ["joint1"]
+    fr = run["joints"]["joint1"]
+    assert fr["omega"] == pytest.approx(w, rel=1e-9)
+    assert fr["gain"] == pytest.approx(abs(g), abs=1e-9)
+    assert fr["phase"] == pytest.approx(np.angle(g), abs=1e-9)
+    # 10 s hold P = 4 whole periods of 2π/3 s: the last 2 are fitted
+    assert fr["periods"] == 2
+    assert fr["t_fit_start"] == pytest.approx(10.0 - 4 * math.pi / 3, abs=1e-3)
+
+
+def test_run_metrics_without_sinusoid_has_no_frequency_response():
+    from joint_space_control.analysis.run_metrics import controller_metrics
+
+    t = np.arange(0.0, 1.0 + 1e-9, 1e-3)
+    q_d = np.column_stack([np.full(t.size, 0.5), np.full(t.size, -0.3)])
+    rows = {"q_d": q_d, "ddq_d": 0 * q_d, "q": q_d - 0.001, "tau": np.ones_like(q_d)}
+    m = controller_metrics(_state(t, rows))
+    assert m["frequency_response"] is None
+    assert m["torque_chatter_rms"] == {"joint1": 0.0, "joint2": 0.0}
+    assert m["static_offset"]["mean_error"] == {
+        "joint1": pytest.approx(0.001),
+        "joint2": pytest.approx(0.001),
+    }
