@@ -98,24 +98,101 @@ def sampled_loop_matrices(
     return phi, gamma, phi - np.outer(gamma, [kp, kd])
 
 
+def _delay_split(period: float, delay: float) -> tuple[int, float]:
+    """δ = d·T + r, 0 ≤ r < T: (d, r)."""
+    delay = float(delay)
+    if not (math.isfinite(delay) and delay >= 0.0):
+        raise ValueError(f"'delay' must be finite and >= 0 s, got {delay}")
+    d = math.floor(delay / period * (1.0 + 1e-12))
+    return d, max(delay - d * period, 0.0)
+
+
+def _advance(p, v, u, s: float, h: float):
+    """State after a time s with input u held: exact for h = 0, s/h semi-implicit Euler steps
+    of h otherwise (p + v s + u s(s + h)/2, v + u s; any arrays broadcasting)."""
+    return p + v * s + u * (0.5 * s * (s + h)), v + u * s
+
+
+def _delayed_map(kp: float, kd: float, T: float, h: float, delay: float) -> np.ndarray:
+    """The one-period map of z = (p, q̇, y_{k−1}, …, y_{k−d−1}) (see :func:`delayed_loop_matrix`),
+    without the checks on whole physics steps (the stability search varies T continuously)."""
+    d, r = _delay_split(T, delay)
+    n = 3 + d
+    out = np.empty((n, n))
+    for i, z in enumerate(np.eye(n)):
+        y = -(kp * z[0] + kd * z[1])
+        new = y if d == 0 else z[1 + d]  # y_{k−d}
+        old = z[2 + d]  # y_{k−d−1}
+        p, v = _advance(z[0], z[1], old, r, h)
+        p, v = _advance(p, v, new, T - r, h)
+        out[:, i] = np.concatenate(([p, v, y], z[2 : 2 + d]))
+    return out
+
+
+def delayed_loop_matrix(
+    kp: float, kd: float, period: float, physics_dt: float | None = None, delay: float = 0.0
+) -> np.ndarray:
+    r"""One-period map z_{k+1} = M z_k of the sampled loop with a transport delay δ [s].
+
+    The y_k computed from the sample at t_k reaches the plant at t_k + δ, δ = d·T_s + r,
+    0 ≤ r < T_s: over [t_k, t_k + r) the plant holds y_{k−d−1}, over [t_k + r, t_{k+1}) it
+    holds y_{k−d}. z = (q − q_d, q̇, y_{k−1}, …, y_{k−d−1}), size 3 + d; the inputs before
+    the first sample are 0 (at rest). δ = 0 gives the 2×2 A of
+    :func:`sampled_loop_matrices` in the top-left block and zeros elsewhere (an extra
+    eigenvalue 0). With ``physics_dt`` r must be a whole number of physics steps (the
+    plant applies a new command at a step boundary).
+    """
+    kp, kd = _gains(kp, kd)
+    T = _positive(period, "period")
+    h = 0.0
+    if physics_dt is not None:
+        substeps(T, physics_dt)
+        h = float(physics_dt)
+        _, r = _delay_split(T, delay)
+        if r > PERIOD_RTOL * T:
+            substeps(r, h)
+    return _delayed_map(kp, kd, T, h, delay)
+
+
 def sampled_spectral_radius(
-    kp: float, kd: float, period: float, physics_dt: float | None = None
+    kp: float, kd: float, period: float, physics_dt: float | None = None, delay: float = 0.0
 ) -> float:
-    """max |z| over the eigenvalues of A (:func:`sampled_loop_matrices`): < 1 ⇔ stable."""
-    return float(
-        np.max(np.abs(np.linalg.eigvals(sampled_loop_matrices(kp, kd, period, physics_dt)[2])))
-    )
+    """max |z| over the eigenvalues of the loop's one-period map (:func:`sampled_loop_matrices`,
+    or :func:`delayed_loop_matrix` with a ``delay`` [s]): < 1 ⇔ stable."""
+    if delay:
+        m = delayed_loop_matrix(kp, kd, period, physics_dt, delay)
+    else:
+        m = sampled_loop_matrices(kp, kd, period, physics_dt)[2]
+    return float(np.max(np.abs(np.linalg.eigvals(m))))
 
 
-def sampled_stability_limit(kp: float, kd: float, physics_dt: float | None = None) -> float:
-    r"""T_s* [s]: the loop is stable for every T_s < T_s* and not at T_s* (Jury conditions).
+DELAY_SCAN_POINTS = 4000
+"""Periods tried, evenly up to 1.5 × the undelayed limit, to bracket the delayed limit."""
+MAX_DELAY_PERIODS = 50
+"""The delayed limit is searched among periods T_s ≥ δ / MAX_DELAY_PERIODS."""
 
-    T_s* = min(4/(2K_D + K_P h), h + 2K_D/K_P, T₁), T₁ the smaller root of
-    K_P T²/2 − (K_D + K_P h/2) T + 2 when it is real (h = ``physics_dt``, 0 for the exact
-    ZOH). With the exact ZOH, T_s* = min(2/K_D, 2K_D/K_P) = min(1/(ζω_n), 4ζ/ω_n); 0 for
-    K_D = 0. With sub-steps the formula treats T_s as continuous; a real period is a whole
-    number of steps h, so the longest usable one is the largest multiple of h below T_s*
-    (and none when T_s* ≤ h).
+
+def sampled_stability_limit(
+    kp: float, kd: float, physics_dt: float | None = None, delay: float = 0.0
+) -> float:
+    r"""T_s* [s]: the loop is stable for every T_s < T_s* and not at T_s*.
+
+    Without delay, from the Jury conditions: T_s* = min(4/(2K_D + K_P h), h + 2K_D/K_P, T₁),
+    T₁ the smaller root of K_P T²/2 − (K_D + K_P h/2) T + 2 when it is real
+    (h = ``physics_dt``, 0 for the exact ZOH). With the exact ZOH,
+    T_s* = min(2/K_D, 2K_D/K_P) = min(1/(ζω_n), 4ζ/ω_n); 0 for K_D = 0. With sub-steps the
+    formula treats T_s as continuous; a real period is a whole number of steps h, so the
+    longest usable one is the largest multiple of h below T_s* (none when T_s* ≤ h).
+
+    With a transport ``delay`` δ > 0 [s] (:func:`delayed_loop_matrix`, T_s continuous as
+    above): the first T_s at which the spectral radius reaches 1 among
+    :data:`DELAY_SCAN_POINTS` periods evenly spaced from max(δ/:data:`MAX_DELAY_PERIODS`,
+    the spacing) to 1.5 × the undelayed limit, refined by bisection to a relative 1e-12 (a
+    stable or unstable interval narrower than the scan spacing could be missed). NaN if the
+    shortest period tried is already unstable (the delay alone destabilises the loop) or
+    none is. A delay short against T_s can raise the limit (for ζ = 0.7, ω_n = 20 the exact
+    ZOH limit goes from 71.4 ms to 77.6 ms with δ = 2 ms): the late part of the period
+    still holds the previous input, which softens the alternation at z = −1.
     """
     kp, kd = _gains(kp, kd)
     h = 0.0 if physics_dt is None else _positive(physics_dt, "physics_dt")
@@ -125,7 +202,35 @@ def sampled_stability_limit(kp: float, kd: float, physics_dt: float | None = Non
     disc = b * b - 4.0 * kp
     if disc >= 0.0:
         bounds.append(4.0 / (b + math.sqrt(disc)))  # (b − √disc)/K_P, written without cancellation
-    return float(min(bounds))
+    undelayed = float(min(bounds))
+    if not delay:
+        return undelayed
+    _delay_split(1.0, delay)  # checks it
+
+    def unstable(T: float) -> bool:
+        m = _delayed_map(kp, kd, T, h, delay)
+        return bool(np.max(np.abs(np.linalg.eigvals(m))) >= 1.0)
+
+    top = 1.5 * (undelayed if undelayed > 0.0 else 4.0 / max(kd, math.sqrt(kp)))
+    shortest = max(top / DELAY_SCAN_POINTS, delay / MAX_DELAY_PERIODS)
+    grid = np.linspace(shortest, max(top, 2.0 * shortest), DELAY_SCAN_POINTS)
+    if unstable(float(grid[0])):
+        return math.nan
+    lo = float(grid[0])
+    for T in grid[1:]:
+        if unstable(float(T)):
+            hi = float(T)
+            break
+        lo = float(T)
+    else:
+        return math.nan
+    while hi - lo > 1e-12 * hi:
+        mid = 0.5 * (lo + hi)
+        if unstable(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 @dataclass(frozen=True)
@@ -156,6 +261,7 @@ def sampled_step_response(
     dt: float | None = None,
     y0: float = 0.0,
     y1: float = 1.0,
+    delay: float = 0.0,
 ) -> SampledResponse:
     r"""Step response from rest at y0 to the set-point y1 (step at t = 0, first sample at 0).
 
@@ -167,7 +273,10 @@ def sampled_step_response(
     - ``physics_dt=None`` (exact ZOH of the continuous plant): q = q_k + q̇_k τ + y_k τ²/2 on
       a grid of ``dt`` (default T_s/100).
 
-    The grid spacing must divide ``period``; the record covers ⌈duration/T_s⌉ periods.
+    With a transport ``delay`` δ [s] the input changes within a period as in
+    :func:`delayed_loop_matrix` (δ a whole number of grid steps past a whole number of
+    periods). The grid spacing must divide ``period``; the record covers ⌈duration/T_s⌉
+    periods.
     """
     kp, kd = _gains(kp, kd)
     duration = _positive(duration, "duration")
@@ -181,15 +290,24 @@ def sampled_step_response(
     T = float(period)
     h = 0.0 if physics_dt is None else float(physics_dt)
     n_periods = max(1, math.ceil(duration / T - PERIOD_RTOL))
-    _, _, a = sampled_loop_matrices(kp, kd, T, physics_dt)
-    x = np.empty((n_periods + 1, 2))
-    x[0] = (float(y0) - float(y1), 0.0)
+    d, r = _delay_split(T, delay)
+    j_r = 0 if r <= PERIOD_RTOL * T else substeps(r, dt)  # grid steps before the change
+    a = delayed_loop_matrix(kp, kd, T, physics_dt, delay)
+    z = np.zeros((n_periods + 1, a.shape[0]))
+    z[0, 0] = float(y0) - float(y1)
     for k in range(n_periods):
-        x[k + 1] = a @ x[k]
+        z[k + 1] = a @ z[k]
+    x = z[:, :2]
     y = -(kp * x[:, 0] + kd * x[:, 1])
+    new = (y if d == 0 else z[:, 1 + d])[:-1, None]  # held from r to T
+    old = z[:-1, 2 + d, None]  # held from 0 to r
     tau = np.arange(m) * dt
-    p = x[:-1, 0:1] + x[:-1, 1:2] * tau + y[:-1, None] * (0.5 * tau * (tau + h))
-    v = x[:-1, 1:2] + y[:-1, None] * tau
+    first = tau < (j_r - 0.5) * dt
+    pr, vr = _advance(x[:-1, 0:1], x[:-1, 1:2], old, j_r * dt, h)
+    p0, v0 = _advance(x[:-1, 0:1], x[:-1, 1:2], old, tau, h)
+    p1, v1 = _advance(pr, vr, new, tau - j_r * dt, h)
+    p = np.where(first, p0, p1)
+    v = np.where(first, v0, v1)
     t_samples = np.arange(n_periods + 1) * T
     t = (t_samples[:-1, None] + tau).reshape(-1)
     return SampledResponse(
@@ -216,8 +334,10 @@ def _settling(t: np.ndarray, err: np.ndarray, band: float) -> float:
     return float(t[k] + frac * (t[k + 1] - t[k]))
 
 
-def _default_duration(kp: float, kd: float, period: float, physics_dt: float | None) -> float:
-    rho = sampled_spectral_radius(kp, kd, period, physics_dt)
+def _default_duration(
+    kp: float, kd: float, period: float, physics_dt: float | None, delay: float
+) -> float:
+    rho = sampled_spectral_radius(kp, kd, period, physics_dt, delay)
     if not rho < 1.0:
         return 200.0 * period
     periods = math.ceil(math.log(SETTLE_MARGIN * 0.02) / math.log(max(rho, 1e-300))) + 10
@@ -231,16 +351,18 @@ def sampled_step_prediction(
     physics_dt: float | None = 1e-3,
     dt: float | None = None,
     duration: float | None = None,
+    delay: float = 0.0,
 ) -> dict[str, float | bool]:
     r"""What the sampled loop predicts for a unit step (figures relative to the step size).
 
     Returns, times in s and percentages of the step:
 
-    - ``period``, ``physics_dt`` (None for the exact ZOH), ``spectral_radius``, ``stable``
-      (ρ < 1), ``stability_limit`` (:func:`sampled_stability_limit`);
+    - ``period``, ``physics_dt`` (None for the exact ZOH), ``delay``, ``spectral_radius``,
+      ``stable`` (ρ < 1), ``stability_limit`` (:func:`sampled_stability_limit`, same delay);
     - ``overshoot_percent``: the peak of the plant's motion: on every physics step for the
-      semi-implicit plant; for the exact ZOH the true continuous peak (the vertex of each
-      period's parabola, q̇ = 0 at τ = −q̇_k/y_k, is included besides the ``dt`` grid);
+      semi-implicit plant; for the exact ZOH the true continuous peak (the input is constant
+      between two points of the ``dt`` grid, so the vertex of each piece of parabola, where
+      q̇ = 0, is included besides the grid points);
     - ``overshoot_percent_sampled``: the peak of the samples at k·T_s only (what a record of
       the controller's state, one sample per period, can show);
     - ``settling_time_2``, ``settling_time_2_sampled``: last exit from the ±2 % band on the
@@ -251,13 +373,14 @@ def sampled_step_prediction(
     An unstable loop (ρ ≥ 1) gives NaN overshoot and settling times.
     """
     kp, kd = _gains(kp, kd)
-    rho = sampled_spectral_radius(kp, kd, period, physics_dt)
+    rho = sampled_spectral_radius(kp, kd, period, physics_dt, delay)
     out: dict[str, float | bool] = {
         "period": float(period),
         "physics_dt": None if physics_dt is None else float(physics_dt),
+        "delay": float(delay),
         "spectral_radius": rho,
         "stable": bool(rho < 1.0),
-        "stability_limit": sampled_stability_limit(kp, kd, physics_dt),
+        "stability_limit": sampled_stability_limit(kp, kd, physics_dt, delay),
     }
     if not rho < 1.0:
         out.update(
@@ -268,15 +391,17 @@ def sampled_step_prediction(
         )
         return out
     if duration is None:
-        duration = _default_duration(kp, kd, period, physics_dt)
-    r = sampled_step_response(kp, kd, period, duration, physics_dt, dt, 0.0, 1.0)
+        duration = _default_duration(kp, kd, period, physics_dt, delay)
+    r = sampled_step_response(kp, kd, period, duration, physics_dt, dt, 0.0, 1.0, delay)
     peak = float(np.max(r.q))
     if physics_dt is None:
-        y, v, p = r.y[:-1], r.dq_samples[:-1], r.q_samples[:-1] - 1.0
+        step = np.diff(r.t)
+        u = np.diff(r.dq) / step  # the input held over each grid interval
+        v, p = r.dq[:-1], r.q[:-1] - 1.0
         with np.errstate(divide="ignore", invalid="ignore"):
-            tau = -v / y
-            vertex = p - 0.5 * v * v / y
-        inside = (y != 0.0) & (tau > 0.0) & (tau < float(period))
+            tau = -v / u
+            vertex = p - 0.5 * v * v / u
+        inside = (u != 0.0) & (tau > 0.0) & (tau < step)
         if np.any(inside):
             peak = max(peak, 1.0 + float(np.max(vertex[inside])))
     out.update(

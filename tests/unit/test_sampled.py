@@ -149,3 +149,79 @@ def test_rejects_bad_input():
         sampled_stability_limit(-1.0, KD)
     with pytest.raises(ValueError):
         sampled_loop_matrices(KP, KD, 0.0)
+
+
+def delayed_plant(kp, kd, period, duration, h, delay, semi_implicit, y0=0.0, y1=1.0):
+    """Independent: commands computed at t_k = k T from the state then, queued, and applied
+    from t_k + δ on; the plant steps at h (exact for a held input, or semi-implicit Euler)."""
+    m = round(period / h)
+    lag = round(delay / h)  # the delay in steps h
+    n = round(duration / period)
+    q, v = y0, 0.0
+    queue = {}  # step index at which a command starts -> command
+    u = 0.0
+    out = [q]
+    for i in range(n * m):
+        if i % m == 0:
+            queue[i + lag] = kp * (y1 - q) - kd * v
+        u = queue.pop(i, u)
+        if semi_implicit:
+            v += h * u
+            q += h * v
+        else:
+            q += h * v + 0.5 * h * h * u
+            v += h * u
+        out.append(q)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("delay", [0.0, 2e-3, 10e-3, 13e-3, 27e-3])
+@pytest.mark.parametrize("physics_dt", [None, 1e-3])
+def test_delayed_loop_matches_a_command_queue(delay, physics_dt):
+    period, h = 10e-3, 1e-3
+    r = sampled_step_response(
+        KP, KD, period, 0.6, physics_dt=physics_dt, dt=None if physics_dt else h, delay=delay
+    )
+    reference = delayed_plant(KP, KD, period, 0.6, h, delay, semi_implicit=physics_dt is not None)
+    assert np.max(np.abs(r.q - reference)) < 1e-12
+
+
+def test_zero_delay_block_is_the_undelayed_matrix():
+    from joint_space_control.laws.sampled import delayed_loop_matrix
+
+    a = sampled_loop_matrices(KP, KD, 0.02, 1e-3)[2]
+    m = delayed_loop_matrix(KP, KD, 0.02, 1e-3, 0.0)
+    np.testing.assert_allclose(m[:2, :2], a, rtol=1e-15, atol=1e-15)
+    assert sampled_spectral_radius(KP, KD, 0.02, 1e-3, delay=0.0) == pytest.approx(
+        np.max(np.abs(np.linalg.eigvals(a)))
+    )
+
+
+@pytest.mark.parametrize("delay", [0.3e-3, 5e-3, 20e-3])
+@pytest.mark.parametrize("physics_dt", [None, 1e-4])
+def test_delayed_stability_limit_is_where_the_spectral_radius_crosses_one(delay, physics_dt):
+    from joint_space_control.laws.sampled import _delayed_map
+
+    limit = sampled_stability_limit(KP, KD, physics_dt, delay=delay)
+    h = physics_dt or 0.0
+
+    def rho(T):
+        return np.max(np.abs(np.linalg.eigvals(_delayed_map(KP, KD, T, h, delay))))
+
+    assert rho(limit * (1 - 1e-6)) < 1.0 <= rho(limit * (1 + 1e-6))
+    assert max(rho(T) for T in np.linspace(max(limit, delay) / 50, limit * (1 - 1e-6), 500)) < 1.0
+
+
+def test_stability_limit_with_long_delays():
+    undelayed = sampled_stability_limit(KP, KD)
+    assert sampled_stability_limit(KP, KD, delay=2e-3) > undelayed  # see the docstring
+    assert sampled_stability_limit(KP, KD, delay=20e-3) < undelayed
+    # a continuous loop with 50 ms of delay at ω_n = 20 is unstable however fast it samples
+    assert math.isnan(sampled_stability_limit(KP, KD, delay=50e-3))
+
+
+def test_delay_raises_the_overshoot():
+    p0 = sampled_step_prediction(KP, KD, 5e-3, physics_dt=None, dt=1e-4)
+    p1 = sampled_step_prediction(KP, KD, 5e-3, physics_dt=None, dt=1e-4, delay=2e-3)
+    assert p1["overshoot_percent"] > p0["overshoot_percent"]
+    assert p1["delay"] == 2e-3
