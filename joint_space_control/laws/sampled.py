@@ -30,6 +30,9 @@ tr A = 2 − c K_P T² − K_D T and det A = 1 − K_D T + (1 − c) K_P T². Th
 For the exact ZOH and K_P = ω_n², K_D = 2ζω_n this gives T_s* = min(1/(ζω_n), 4ζ/ω_n): the
 loop leaves the unit circle at z = −1 for ζ > 1/2 and with a complex pair for ζ < 1/2.
 
+A transport delay δ (the command computed at t_k reaches the plant at t_k + δ, as in
+realtime) is an option of every function: :func:`delayed_loop_matrix`.
+
 Numpy only; scalar gains (one joint). Times in s, K_P in 1/s², K_D in 1/s.
 """
 
