@@ -9,6 +9,10 @@ joint), torques in N·m (N for a prismatic joint), percentages in %.
 - :func:`tracking_error`: RMS and peak of e = q_d − q;
 - :func:`torque_demand`: peak |τ|, peak |τ̇|, fraction of time at the torque limit;
 - :func:`period_statistics`: timing of a periodic loop from its time stamps;
+- :func:`torque_chatter_rms`: RMS of the sample-to-sample change of τ;
+- :func:`mean_error`: mean of e = q_d − q over a window (the static offset under a disturbance);
+- :func:`position_spread`: accuracy and repeatability of repeated final positions (ISO 9283);
+- :func:`sinusoid_frequency`: ω of a reference q̄ + Δ sin(ωt + φ), from its q_d and q̈_d;
 - :func:`second_order_step`, :func:`second_order_prediction`: the analytic answer for the
   nominal inverse-dynamics loop ë + K_D ė + K_P e = 0, where each joint follows
   G(s) = ω_n² / (s² + 2ζω_n s + ω_n²), ω_n = √K_P, ζ = K_D / (2√K_P) (the gains ↔ (ω_n, ζ)
@@ -399,6 +403,141 @@ def period_statistics(stamps: ArrayLike) -> dict[str, float]:
         "max_jitter": float(np.max(np.abs(periods - median))),
         "count": int(arr.size),
     }
+
+
+# --------------------------------------------------------------------------- windows, chatter
+
+
+def _window_slice(t: np.ndarray, t_start: float | None, t_end: float | None) -> slice:
+    lo = -math.inf if t_start is None else float(t_start)
+    hi = math.inf if t_end is None else float(t_end)
+    if math.isnan(lo) or math.isnan(hi) or lo > hi:
+        raise ValueError(f"bad time window [{t_start}, {t_end}]")
+    first = int(np.searchsorted(t, lo, side="left"))
+    stop = int(np.searchsorted(t, hi, side="right"))
+    if stop <= first:
+        raise ValueError(f"no sample in the time window [{t_start}, {t_end}]")
+    return slice(first, stop)
+
+
+def torque_chatter_rms(
+    t: ArrayLike, tau: ArrayLike, t_start: float | None = None, t_end: float | None = None
+) -> np.ndarray:
+    r"""Torque chatter: RMS of the sample-to-sample change Δτ_k = τ_{k+1} − τ_k [N·m].
+
+    Over the samples with t_start ≤ t ≤ t_end (both samples of a difference inside), per
+    joint, shape (n_joints,): √(mean_k Δτ_k²); NaN with fewer than 2 samples. Samples
+    sharing a stamp count once (the last one). It is a property of the sampled command:
+    a smooth torque contributes |τ̇|·T_s (T_s the sample period), an alternating component
+    ±a contributes 2a; so compare runs at the same control rate. Measurement noise of σ on q
+    through K_P gives about √2·K_P·σ (white noise: consecutive samples independent).
+    """
+    t = _time(t)
+    tau = _samples(tau, t.size, "tau")
+    window = _window_slice(t, t_start, t_end)
+    tw, tauw = t[window], tau[:, window]
+    last_of_stamp = np.append(np.diff(tw) > 0.0, True)
+    tauw = tauw[:, last_of_stamp]
+    if tauw.shape[1] < 2:
+        return np.full(tau.shape[0], math.nan)
+    return np.sqrt(np.mean(np.diff(tauw, axis=1) ** 2, axis=1))
+
+
+def mean_error(
+    t: ArrayLike,
+    q: ArrayLike,
+    q_des: ArrayLike,
+    t_start: float | None = None,
+    t_end: float | None = None,
+) -> np.ndarray:
+    r"""Mean of e = q_d − q per joint over the samples with t_start ≤ t ≤ t_end [joint unit].
+
+    The plain mean of the samples (a controller's state comes at a fixed period). Over the
+    last part of a run that has come to rest it is the static offset, e.g. under a constant
+    disturbance (PD + g: K_P e = Jᵀh_e), averaged over noise and any residual hunting.
+    """
+    t = _time(t)
+    q = _samples(q, t.size, "q")
+    q_des = _samples(q_des, t.size, "q_des")
+    if q.shape != q_des.shape:
+        raise ValueError(f"'q' has shape {q.shape} but 'q_des' has {q_des.shape}")
+    window = _window_slice(t, t_start, t_end)
+    return np.mean(q_des[:, window] - q[:, window], axis=1)
+
+
+def position_spread(finals: ArrayLike, target: ArrayLike) -> dict[str, np.ndarray | float]:
+    r"""Accuracy and repeatability of N repeated final positions, in the spirit of ISO 9283.
+
+    ``finals`` (N_runs, n) are the positions reached by N attempts at the same ``target``
+    (n,) (joint positions, or any coordinates, e.g. Cartesian ones); N ≥ 2. With the
+    barycentre x̄ = mean of the runs and l_i = ‖x_i − x̄‖:
+
+    - ``mean`` (n,): x̄;
+    - ``offset`` (n,): x̄ − target, the accuracy as a vector (signed, per coordinate);
+    - ``accuracy``: ‖x̄ − target‖ (ISO 9283 AP);
+    - ``repeatability``: l̄ + 3 S_l, S_l the sample standard deviation (ddof = 1) of the l_i
+      (ISO 9283 RP, the radius of a sphere around x̄ holding the runs);
+    - ``max_distance``: max l_i, the radius around x̄ holding every run;
+    - ``three_sigma`` (n,): 3 × the sample standard deviation (ddof = 1) of each coordinate.
+    """
+    x = np.asarray(finals, dtype=float)
+    if x.ndim == 1:
+        x = x[:, None]
+    target = np.asarray(target, dtype=float).reshape(-1)
+    if x.ndim != 2 or x.shape[0] < 2:
+        raise ValueError(f"'finals' must be (N_runs >= 2, n), got shape {x.shape}")
+    if target.size != x.shape[1]:
+        raise ValueError(f"'target' has {target.size} values for {x.shape[1]} coordinates")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(target))):
+        raise ValueError("'finals' and 'target' must be finite")
+    mean = np.mean(x, axis=0)
+    dist = np.linalg.norm(x - mean, axis=1)
+    return {
+        "runs": int(x.shape[0]),
+        "mean": mean,
+        "offset": mean - target,
+        "accuracy": float(np.linalg.norm(mean - target)),
+        "repeatability": float(np.mean(dist) + 3.0 * np.std(dist, ddof=1)),
+        "max_distance": float(np.max(dist)),
+        "three_sigma": 3.0 * np.std(x, axis=0, ddof=1),
+    }
+
+
+SINUSOID_RTOL = 1e-4
+"""Relative RMS residual under which q̈_d = −ω²(q_d − q̄) holds: the reference is a sinusoid."""
+
+
+def sinusoid_frequency(
+    q_des: ArrayLike, ddq_des: ArrayLike, rtol: float = SINUSOID_RTOL
+) -> np.ndarray:
+    r"""ω [rad/s] of each joint whose reference is q̄ + Δ sin(ωt + φ), else NaN.
+
+    A sinusoid satisfies q̈_d = −ω² (q_d − q̄): the least-squares line of q̈_d against q_d
+    has slope −ω² and (relative to the RMS of q̈_d) a residual below ``rtol``. A joint whose
+    q_d does not move, or whose fit leaves more, or gives a slope ≥ 0, gets NaN. Needs only
+    the samples (not the time stamps); shapes (N,) or (N, n_joints).
+    """
+    q_des = np.asarray(q_des, dtype=float)
+    ddq_des = np.asarray(ddq_des, dtype=float)
+    if q_des.ndim == 1:
+        q_des, ddq_des = q_des[:, None], ddq_des[:, None]
+    if q_des.shape != ddq_des.shape or q_des.ndim != 2:
+        raise ValueError(f"'q_des' {q_des.shape} and 'ddq_des' {ddq_des.shape} differ")
+    out = np.full(q_des.shape[1], math.nan)
+    if q_des.shape[0] < 3:
+        return out
+    x = q_des - np.mean(q_des, axis=0)
+    a = ddq_des - np.mean(ddq_des, axis=0)
+    for j in range(q_des.shape[1]):
+        sxx = float(x[:, j] @ x[:, j])
+        saa = float(a[:, j] @ a[:, j])
+        if sxx <= 0.0 or saa <= 0.0:
+            continue
+        slope = float(x[:, j] @ a[:, j]) / sxx
+        residual = a[:, j] - slope * x[:, j]
+        if slope < 0.0 and float(residual @ residual) <= (rtol**2) * saa:
+            out[j] = math.sqrt(-slope)
+    return out
 
 
 # --------------------------------------------------------------------------- second order

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from joint_space_control.analysis import metrics
+from joint_space_control.analysis import frequency, metrics
 from joint_space_control.analysis.bag import (
     BagContents,
     BagError,
@@ -454,6 +454,60 @@ def _torque(state: ControllerState, config: dict | None, warnings: list[str]) ->
     }
 
 
+def _static_offset(state: ControllerState) -> dict:
+    """Mean e = q_d − q over the last :data:`metrics.DEFAULT_FINAL_WINDOW` of the record (at
+    least its last sample): the static offset of a run that ends at rest."""
+    t = state.stamp
+    t_start = max(float(t[0]), float(t[-1]) - metrics.DEFAULT_FINAL_WINDOW)
+    e = metrics.mean_error(t, state.rows["q"], state.rows["q_d"], t_start=t_start)
+    return {
+        "t_start": t_start,
+        "t_end": float(t[-1]),
+        "mean_error": _by_joint(state.joints, e),
+    }
+
+
+def _frequency_response(state: ControllerState) -> list[dict] | None:
+    """Gain and phase of q relative to q_d in every run of a moving reference where a
+    joint's q_d is a sinusoid (ω from :func:`metrics.sinusoid_frequency`; needs the q̈_d row).
+
+    A run holding P ≥ 2 whole periods 2π/ω is fitted over its last max(1, ⌊P/2⌋) periods, so
+    that at least the first period, and about half the run, lets the transient decay; a
+    joint with P < 2 is left out. None when no run has a measured joint."""
+    ddq_d = state.rows.get("ddq_d")
+    if ddq_d is None:
+        return None
+    t, q, q_d = state.stamp, state.rows["q"], state.rows["q_d"]
+    out = []
+    for a, b in moving_segments(q_d, state.rows.get("dq_d")):
+        omega = metrics.sinusoid_frequency(q_d[a:b], ddq_d[a:b])
+        span = float(t[b - 1] - t[a])
+        joints = {}
+        for j, name in enumerate(state.joints):
+            if not np.isfinite(omega[j]):
+                continue
+            period = 2.0 * math.pi / float(omega[j])
+            whole = math.floor(span / period * (1.0 + 1e-12))
+            if whole < 2:
+                continue
+            t_fit = float(t[b - 1]) - max(1, whole // 2) * period * (1.0 + 1e-10)
+            point = frequency.frequency_response(
+                t[a:b], q_d[a:b, j], q[a:b, j], float(omega[j]), t_start=t_fit
+            )
+            joints[name] = {
+                "omega": point.omega,
+                "gain": float(point.gain[0]),
+                "gain_db": float(point.gain_db[0]),
+                "phase": float(point.phase[0]),
+                "periods": point.periods,
+                "t_fit_start": point.t_start,
+                "t_fit_end": point.t_end,
+            }
+        if joints:
+            out.append({"t_start": float(t[a]), "t_end": float(t[b - 1]), "joints": joints})
+    return out or None
+
+
 def _periods(state: ControllerState) -> dict:
     if len(state) < 2:
         return {"stamp_period_ms": None, "receive_period_ms": None}
@@ -478,8 +532,9 @@ def controller_metrics(
     received; the one in force at a step's start gives that step's prediction, the last
     one the effort limits. Returns a JSON-ready dict (see the module doc for units):
     ``node``, ``state_topic``, ``robot``, ``law``, ``joints``, ``config``, ``time``,
-    ``final_error``, ``steps``, ``tracking_error``, ``torque_demand``, ``period_statistics``,
-    ``second_order``, ``warnings``.
+    ``final_error``, ``static_offset``, ``steps``, ``tracking_error``, ``torque_demand``,
+    ``torque_chatter_rms``, ``frequency_response``, ``period_statistics``, ``second_order``,
+    ``warnings``.
     """
     warnings = [] if warnings is None else warnings
     if len(state) == 0:
@@ -512,6 +567,9 @@ def controller_metrics(
         "steps": steps,
         "tracking_error": _tracking(state),
         "torque_demand": _torque(state, config, warnings),
+        "static_offset": _static_offset(state),
+        "torque_chatter_rms": _by_joint(joints, metrics.torque_chatter_rms(t, state.rows["tau"])),
+        "frequency_response": _frequency_response(state),
         "period_statistics": _periods(state),
         "second_order": None
         if second_order is None

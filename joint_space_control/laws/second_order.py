@@ -46,3 +46,25 @@ def second_order_parameters(omega_n: ArrayLike, zeta: ArrayLike) -> tuple[np.nda
             f"need omega_n > 0 and zeta >= 0, got omega_n={omega_n.tolist()}, zeta={zeta.tolist()}"
         )
     return omega_n, zeta
+
+
+def second_order_frequency_response(omega: ArrayLike, omega_n: float, zeta: float) -> np.ndarray:
+    r"""G(jω) = ω_n² / (−ω² + 2jζω_nω + ω_n²), complex, of the shape of ``omega`` [rad/s].
+
+    The closed loop of nominal inverse dynamics in its regulation form (q̇_d = q̈_d = 0 in
+    eq. 15, THEORY.md §3) from q_d to q: gain |G|, phase arg G ∈ (−π, 0].
+    """
+    omega_n, zeta = (float(v) for v in second_order_parameters(float(omega_n), float(zeta)))
+    w = np.asarray(omega, dtype=float)
+    return omega_n**2 / (omega_n**2 - w * w + 2j * zeta * omega_n * w)
+
+
+def second_order_bandwidth(omega_n: ArrayLike, zeta: ArrayLike) -> np.ndarray:
+    r"""−3 dB bandwidth ω_b [rad/s] of ω_n²/(s² + 2ζω_n s + ω_n²): |G(jω_b)| = 1/√2,
+
+    ω_b = ω_n √(1 − 2ζ² + √(2 − 4ζ² + 4ζ⁴))  (ω_b = ω_n at ζ = 1/√2, ω_n √(√2 − 1) at ζ = 1).
+    Arrays broadcast together.
+    """
+    omega_n, zeta = second_order_parameters(omega_n, zeta)
+    z2 = zeta * zeta
+    return omega_n * np.sqrt(1.0 - 2.0 * z2 + np.sqrt(2.0 - 4.0 * z2 + 4.0 * z2 * z2))
