@@ -51,6 +51,24 @@ FRICTION_SOLVER = {"numSolverIterations": 100, "solverResidualThreshold": 0.0}
 DEFAULT_SOLVER = {"numSolverIterations": 50, "solverResidualThreshold": 1.0e-7}
 
 
+def coulomb_bounds(
+    coulomb: float | Sequence[float], static: float | Sequence[float], n: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(F_c, F_s) per joint, checked: both ≥ 0, F_s = F_c where ``static`` is 0, otherwise
+    F_s ≥ F_c (n: the number of joints; None: as many as given)."""
+    if n is None:
+        n = max(np.size(coulomb), np.size(static))
+    fc = nonnegative(coulomb, n, "coulomb_friction")
+    fs = nonnegative(static, n, "static_friction")
+    fs = np.where(fs > 0, fs, fc)
+    if np.any(fs < fc):
+        raise ValueError(
+            f"'static_friction' must be 0 (= coulomb_friction) or >= coulomb_friction "
+            f"{fc.tolist()}, got {fs.tolist()}"
+        )
+    return fc, fs
+
+
 def rotation(quaternion: Sequence[float]) -> np.ndarray:
     """The rotation matrix of a unit quaternion (x, y, z, w), PyBullet's order."""
     x, y, z, w = quaternion
@@ -235,14 +253,7 @@ class Plant:
         the bound is held at rest (no chattering around q̇ = 0) and a sliding one feels
         −F_c sign(q̇). With stiction the bound is F_s while |q̇| < :data:`STICTION_SPEED`, F_c
         above it (re-chosen at every physics sub-step)."""
-        fc = nonnegative(coulomb, self.n, "coulomb_friction")
-        fs = nonnegative(static, self.n, "static_friction")
-        fs = np.where(fs > 0, fs, fc)
-        if np.any(fs < fc):
-            raise ValueError(
-                f"'static_friction' must be 0 (= coulomb_friction) or >= coulomb_friction "
-                f"{fc.tolist()}, got {fs.tolist()}"
-            )
+        fc, fs = coulomb_bounds(coulomb, static, self.n)
         was_on = self._coulomb_on
         self.coulomb, self.static = fc, fs
         self._coulomb_on = bool(np.any(fs))

@@ -75,9 +75,7 @@ class Encoder:
         """True when the measurement is the true state (nothing quantized, no noise)."""
         return not (self._any_quantized or self._noisy_q or self._noisy_v)
 
-    def measure(
-        self, q: np.ndarray, dq: np.ndarray, y_q: np.ndarray, y_v: np.ndarray
-    ) -> None:
+    def measure(self, q: np.ndarray, dq: np.ndarray, y_q: np.ndarray, y_v: np.ndarray) -> None:
         """Write the measurement of (q, q̇) into ``y_q`` and ``y_v`` (``y_v`` empty: velocity
         not measured, nothing drawn for it). ``y_q`` may be ``q`` itself."""
         y_q[:] = q

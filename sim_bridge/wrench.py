@@ -1,7 +1,8 @@
 r"""External wrench schedules for scenarios, on simulation time, no ROS.
 
 A schedule applies w(t) = s(t) w₀ to one link, with w₀ = (f₀ [N], μ₀ [N·m]) expressed in the
-world frame and acting at the link frame's origin, and the profile
+world frame and acting at the link frame's origin, and the profile (instants closer than
+:data:`SAME_TIME` are equal)
 
 - ``step``:      s(t) = 1 for t ≥ t₀, else 0;
 - ``pulse``:     s(t) = 1 for t₀ ≤ t < t₀ + T, else 0;
@@ -21,6 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 PROFILES = ("step", "pulse", "sinusoid")
+#: Times closer than this [s] are the same instant (the node's clock counts nanoseconds; t₀ + T
+#: in floating point may land a rounding error past a step's time).
+SAME_TIME = 1e-10
 
 
 def wrench_vector(values: Sequence[float], name: str) -> np.ndarray:
@@ -68,12 +72,12 @@ class WrenchSchedule:
 
     def scale(self, t: float) -> float:
         """s(t), the profile at simulation time t [s]."""
-        if t < self.start:
+        if t < self.start - SAME_TIME:
             return 0.0
         if self.profile == "step":
             return 1.0
         if self.profile == "pulse":
-            return 1.0 if t < self.start + self.duration else 0.0
+            return 1.0 if t < self.start + self.duration - SAME_TIME else 0.0
         return math.sin(2.0 * math.pi * self.frequency * (t - self.start))
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
