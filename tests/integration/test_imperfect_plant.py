@@ -73,3 +73,34 @@ def test_noisy_positions_without_velocities_and_rejected_wrenches(rig: Rig):  # 
     log = rig.group.nodes["sim_bridge"].log()
     assert "rejected wrench: no moving link 'no_such_link'" in log
     assert "Traceback" not in log
+
+
+def test_lockstep_state_sent_again_carries_the_same_measurement(rig: Rig):  # noqa: F811
+    """Lockstep, nobody answering: the state at t = 0 is sent again every republish_period
+    with the same noisy, quantized positions (one measurement per simulation instant, so
+    a run does not depend on how often a state had to be sent), each a whole number of
+    counts Δ = 2π/1000, and differing from the true Q0 (the noise is on)."""
+    rig.group.start(
+        "sim_bridge",
+        {
+            "robot": ROBOT,
+            "mode": "lockstep",
+            "initial_positions": Q0.tolist(),
+            "encoder_counts": 1000,
+            "position_noise": 0.05,
+            "velocity_noise": 0.05,
+            "republish_period": 0.2,
+        },
+    )
+    probe = rig.probe
+    probe.spin_until(
+        lambda: len(probe.recording.stamps) >= 3, 30.0, "three sends", rig.group.check_alive
+    )
+    rec = probe.recording
+    assert set(rec.stamps) == {0}
+    for row in (rec.positions, rec.velocities):
+        assert all(r == row[0] for r in row)
+    counts = np.array(rec.positions[0]) / (2 * math.pi / 1000)
+    np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-9)
+    assert not np.allclose(rec.positions[0], Q0, atol=1e-3)
+    assert rec.velocities[0] != [0.0, 0.0]
