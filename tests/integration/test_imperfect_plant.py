@@ -79,7 +79,8 @@ def test_lockstep_state_sent_again_carries_the_same_measurement(rig: Rig):  # no
     """Lockstep, nobody answering: the state at t = 0 is sent again every republish_period
     with the same noisy, quantized positions (one measurement per simulation instant, so
     a run does not depend on how often a state had to be sent), each a whole number of
-    counts Δ = 2π/1000, and differing from the true Q0 (the noise is on)."""
+    counts Δ = 2π/1000, and differing from the true Q0 (the noise is on). Invalid updates of
+    the new parameters are refused with their name, valid ones accepted."""
     rig.group.start(
         "sim_bridge",
         {
@@ -104,3 +105,28 @@ def test_lockstep_state_sent_again_carries_the_same_measurement(rig: Rig):  # no
     np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-9)
     assert not np.allclose(rec.positions[0], Q0, atol=1e-3)
     assert rec.velocities[0] != [0.0, 0.0]
+
+    assert probe.set_parameters("sim_bridge", {"coulomb_friction": 5.0})[0].successful
+    for values, what in [
+        ({"static_friction": 1.0}, "static_friction"),  # below F_c
+        ({"wrench_link": "no_such_link"}, "wrench_link"),
+        ({"wrench_force": [1.0, 2.0]}, "wrench_force"),
+        ({"wrench_profile": "ramp"}, "wrench_profile"),
+        ({"encoder_counts": -1.0}, "encoder_counts"),
+        ({"position_noise": [0.1, 0.1, 0.1]}, "position_noise"),
+        ({"noise_seed": -3}, "noise_seed"),
+    ]:
+        result = probe.set_parameters("sim_bridge", values)[0]
+        assert not result.successful and what in result.reason, (values, result.reason)
+    result = probe.set_parameters("sim_bridge", {"measure_velocity": False})[0]
+    assert not result.successful  # read-only: the message layout is fixed at start
+    valid = {
+        "coulomb_friction": [5.0, 3.0],
+        "static_friction": 6.0,
+        "wrench_link": "link1",
+        "wrench_force": [0.0, 0.0, -10.0],
+        "wrench_profile": "sinusoid",
+        "wrench_frequency": 2.0,
+        "noise_seed": 3,
+    }
+    assert all(r.successful for r in probe.set_parameters("sim_bridge", valid))
