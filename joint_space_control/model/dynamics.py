@@ -206,9 +206,9 @@ class RobotModel:
         (Pinocchio's LOCAL_WORLD_ALIGNED), [linear; angular]. A wrench w = (f, μ) applied
         to the robot at that origin, in world axes, is the joint torque Jᵀ w; the wrench
         h_e = −w the robot exerts on its environment enters the dynamics as −Jᵀ h_e."""
-        if not self.model.existFrame(link):
+        if not self.model.existFrame(link, pin.BODY):
             raise ValueError(f"no link '{link}' in the model of {self.spec.name}")
-        frame = self.model.getFrameId(link)
+        frame = self.model.getFrameId(link, pin.BODY)
         qc = self._q(q)
         pin.computeJointJacobians(self.model, self.data, qc)
         pin.updateFramePlacements(self.model, self.data)

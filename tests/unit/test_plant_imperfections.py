@@ -198,6 +198,13 @@ def test_zero_wrench_removes_it_and_schedule_follows_simulation_time(make_plant,
     assert not plant.has_wrench
 
 
+def test_link_jacobian_takes_links_only(models):
+    model = models["planar_2dof"]
+    with pytest.raises(ValueError, match="no link 'joint2'"):
+        model.link_jacobian(np.zeros(2), "joint2")  # a joint frame, not a link
+    assert model.link_jacobian(np.zeros(2), "base_link").shape == (6, 2)
+
+
 def test_bad_wrenches_are_refused(make_plant):
     plant = make_plant()
     with pytest.raises(ValueError, match="no moving link 'base_link'.*link1, link2"):
