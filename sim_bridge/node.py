@@ -24,6 +24,13 @@ time does not advance without a command, so there is nothing to time out.
 Services: ``~/reset`` (initial configuration, at rest; time keeps running forward),
 ``~/pause`` and ``~/resume`` (std_srvs/Trigger).
 
+Imperfections, all off by default (docs/plant.md): the published positions and velocities
+can be quantized and noisy (:mod:`sim_bridge.sensors`; one measurement per simulation
+instant, so a state sent again carries the same numbers), the velocities left out
+(``measure_velocity``), the joints given Coulomb friction and stiction, and a link pushed by
+an external wrench, held from ``~/wrench`` (geometry_msgs/WrenchStamped, ``frame_id`` the
+link) and scheduled from the ``wrench_*`` parameters (:mod:`sim_bridge.wrench`).
+
 Loop statistics go to ``/diagnostics`` once a second: per lockstep step or realtime physics
 tick, the period, the work of the tick, the lateness against the wall-clock schedule
 (realtime) and the latency from publishing a state to receiving the command that answers it.
@@ -42,6 +49,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
@@ -67,11 +75,13 @@ from joint_space_control.ros.messages import (
 from joint_space_control.ros.node_main import run_node
 from joint_space_control.ros.wire import JointStateImage, JointStateReader
 from sim_bridge import pacing
-from sim_bridge.plant import Plant
+from sim_bridge.plant import Plant, coulomb_bounds
+from sim_bridge.sensors import Encoder
+from sim_bridge.wrench import PROFILES, WrenchSchedule
 
 MODES = ("realtime", "lockstep")
 #: The safety counters of the plant (on /diagnostics; docs/safety.md).
-COUNTERS = ("rejected.commands", "brake.engaged")
+COUNTERS = ("rejected.commands", "rejected.wrenches", "brake.engaged")
 #: Recent states whose publication time is kept for the command latency (realtime).
 SENT_HISTORY = 64
 #: Realtime: a tick this far behind its schedule [ns] resets the schedule (machine stalled).
@@ -160,6 +170,96 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
     ),
     params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
     params.REJECT_FACTOR,
+    # -- imperfections (docs/plant.md), all off by default --
+    params.ParamSpec(
+        "encoder_counts",
+        0.0,
+        "Encoder counts per revolution: published positions rounded to 2π/counts (0: off)",
+        dynamic=True,
+        unit="counts/rev",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "position_noise",
+        0.0,
+        "σ of the Gaussian noise on the published positions, before quantization",
+        dynamic=True,
+        unit="rad",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "velocity_noise",
+        0.0,
+        "σ of the Gaussian noise on the published velocities",
+        dynamic=True,
+        unit="rad/s",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "noise_seed",
+        0,
+        "Seed of the measurement noise (numpy default_rng); setting it restarts the noise",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "measure_velocity",
+        True,
+        "false: joint_states carry no velocities (an empty velocity array)",
+        read_only=True,
+    ),
+    params.ParamSpec(
+        "coulomb_friction",
+        0.0,
+        "Plant Coulomb friction F_c (a velocity motor with target 0 and at most F_c)",
+        dynamic=True,
+        unit="N·m or N",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "static_friction",
+        0.0,
+        "Stiction F_s >= F_c, held below 1e-3 rad/s (0: same as coulomb_friction)",
+        dynamic=True,
+        unit="N·m or N",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "wrench_link",
+        "",
+        "Link of the scheduled wrench ('': the last controlled joint's child link)",
+    ),
+    params.ParamSpec(
+        "wrench_force",
+        [0.0, 0.0, 0.0],
+        "Scheduled force on the robot, world frame, at the link frame's origin (0: off)",
+        kind="numbers",
+        length=3,
+        unit="N",
+    ),
+    params.ParamSpec(
+        "wrench_torque",
+        [0.0, 0.0, 0.0],
+        "Scheduled torque on the robot, world frame (0 and a zero force: off)",
+        kind="numbers",
+        length=3,
+        unit="N·m",
+    ),
+    params.ParamSpec(
+        "wrench_profile", "step", "Scheduled wrench profile in time", choices=PROFILES
+    ),
+    params.ParamSpec(
+        "wrench_start", 0.0, "Scheduled wrench: start time (simulation)", unit="s", **NONNEGATIVE
+    ),
+    params.ParamSpec(
+        "wrench_duration", 0.0, "Scheduled wrench: length of a pulse", unit="s", **NONNEGATIVE
+    ),
+    params.ParamSpec(
+        "wrench_frequency",
+        0.0,
+        "Scheduled wrench: frequency of a sinusoid",
+        unit="Hz",
+        **NONNEGATIVE,
+    ),
 )
 
 
@@ -198,6 +298,14 @@ class SimBridge(Node):
         self.plant.set_torque_rate_limit(params.value(v, "max_torque_rate", self.n))
         for warning in self.plant.warnings:
             self.get_logger().warning(warning)
+        try:
+            self.plant.set_coulomb_friction(*self._coulomb(v))
+            self.plant.set_wrench_schedule(self._schedule(v))
+        except ValueError:
+            self.plant.close()
+            raise
+        self.encoder = Encoder(self.n, *self._encoder(v), seed=self._seed(v))
+        self._measure_velocity = bool(v["measure_velocity"])
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._lock = threading.Lock()  # plant and time, shared with the realtime thread
@@ -223,7 +331,10 @@ class SimBridge(Node):
         self.loop_stats = LoopStatistics()
         self._tick_sim_ns = self.period_ns if self.mode == "lockstep" else self.physics_dt_ns
 
-        self._state_image = JointStateImage(self.joints)
+        velocities = self.n if self._measure_velocity else 0
+        self._state_image = JointStateImage(self.joints, (self.n, velocities, self.n))
+        self._q, self._dq = np.zeros(self.n), np.zeros(self.n)  # true state, when measured
+        self._measured_ns: int | None = None  # time of the state in the image
         self._clock_msg = Clock()
         self._effort_reader = JointStateReader(
             self._order, (2,), lambda m: (effort_arrays(m, self._order),), allow_extra=False
@@ -240,6 +351,7 @@ class SimBridge(Node):
         self._diagnostics = LoopDiagnostics(
             self, self.loop_stats, spec.name, self._diagnostic_values, self._alarm
         )
+        self.create_subscription(WrenchStamped, "~/wrench", self._on_wrench, 10)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(Trigger, "~/pause", self._on_pause)
         self.create_service(Trigger, "~/resume", self._on_resume)
@@ -274,6 +386,10 @@ class SimBridge(Node):
             reject_factor = params.value(values, "reject_factor")
             pause_at = self._pause_time(values)
             max_rate = params.value(values, "max_torque_rate", self.n)
+            coulomb = self._coulomb(values)
+            schedule = self._schedule(values)
+            encoder = self._encoder(values)
+            seed = self._seed(values)
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
@@ -284,9 +400,54 @@ class SimBridge(Node):
                 self.plant.set_payload(payload)
             self.command_timeout = timeout
             self.reject_factor = reject_factor
+            if coulomb != (tuple(self.plant.coulomb), tuple(self.plant.static)):
+                self.plant.set_coulomb_friction(*coulomb)
+            self.plant.set_wrench_schedule(schedule)
+            self.encoder.configure(*encoder)
+            if any(p.name == "noise_seed" for p in changes):
+                self.encoder.reseed(seed)
             if any(p.name == "pause_at" for p in changes):
                 self._pause_at_ns = pause_at
         return SetParametersResult(successful=True)
+
+    def _coulomb(self, values: dict[str, Any]) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """(F_c, F_s) per joint, checked (F_s = F_c where ``static_friction`` is 0)."""
+        fc, fs = coulomb_bounds(
+            params.value(values, "coulomb_friction", self.n),
+            params.value(values, "static_friction", self.n),
+        )
+        return tuple(fc), tuple(fs)
+
+    def _schedule(self, values: dict[str, Any]) -> WrenchSchedule:
+        """The scheduled wrench; its link must be one of the plant's."""
+        schedule = WrenchSchedule(
+            params.value(values, "wrench_force"),
+            params.value(values, "wrench_torque"),
+            params.value(values, "wrench_profile"),
+            params.value(values, "wrench_start"),
+            params.value(values, "wrench_duration"),
+            params.value(values, "wrench_frequency"),
+            link=params.value(values, "wrench_link"),
+        )
+        try:
+            self.plant.link_index(schedule.link)
+        except ValueError as err:
+            raise ValueError(f"'wrench_link': {err}") from None
+        return schedule
+
+    def _encoder(self, values: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return (
+            params.value(values, "encoder_counts", self.n),
+            params.value(values, "position_noise", self.n),
+            params.value(values, "velocity_noise", self.n),
+        )
+
+    @staticmethod
+    def _seed(values: dict[str, Any]) -> int:
+        seed = params.value(values, "noise_seed")
+        if seed != int(seed):
+            raise ValueError(f"'noise_seed' must be an integer, got {seed}")
+        return int(seed)
 
     def _initial_positions(self, values: dict[str, Any], model: Any) -> np.ndarray:
         """``initial_positions``, clipped into the joint limits (with a log line when it
@@ -324,7 +485,13 @@ class SimBridge(Node):
     def _publish_state(self) -> None:
         """Publish /clock and the joint state at the current time (with the lock held)."""
         image = self._state_image
-        self.plant.read_state(image.position, image.velocity, image.effort)
+        if self._measured_ns != self._t_ns:  # a new state: measured once
+            if self.encoder.exact and self._measure_velocity:
+                self.plant.read_state(image.position, image.velocity, image.effort)
+            else:
+                self.plant.read_state(self._q, self._dq, image.effort)
+                self.encoder.measure(self._q, self._dq, image.position, image.velocity)
+            self._measured_ns = self._t_ns
         image.set_stamp(self._t_ns)
         if self._clock_pub.get_subscription_count():  # volatile: nobody listening, no loss
             clock = self._clock_msg.clock
@@ -454,10 +621,21 @@ class SimBridge(Node):
             answered = self._awaiting
             self._awaiting = None
             latency = self._latency(answered, received)
-            self.plant.step(tau, self.substeps)
+            self.plant.step(tau, self.substeps, self._t_ns * 1e-9)
             self._t_ns += self.period_ns
             self._publish_state()
         self.loop_stats.tick(received, time.perf_counter_ns(), latency, -1, self.period_ns)
+
+    def _on_wrench(self, msg: WrenchStamped) -> None:
+        """Hold the wrench on the link ``header.frame_id`` names ('': the last controlled
+        joint's child link) until the next message; a zero wrench removes it."""
+        f, mu = msg.wrench.force, msg.wrench.torque
+        try:
+            with self._lock:
+                self.plant.hold_wrench(msg.header.frame_id, (f.x, f.y, f.z), (mu.x, mu.y, mu.z))
+        except ValueError as err:
+            self.counts["rejected.wrenches"] += 1
+            self.get_logger().warning(f"rejected wrench: {err}", throttle_duration_sec=1.0)
 
     # -- realtime ----------------------------------------------------------------------
     def _realtime_loop(self) -> None:
@@ -504,7 +682,7 @@ class SimBridge(Node):
             if self._braking:
                 self.get_logger().info("valid commands: torque control")
                 self._braking = self._timed_out = False
-            self.plant.step(self._tau, 1)
+            self.plant.step(self._tau, 1, self._t_ns * 1e-9)
         else:
             if not self._braking:
                 self.get_logger().warning(
@@ -512,13 +690,14 @@ class SimBridge(Node):
                 )
                 self._braking = self._timed_out = True
                 self.counts["brake.engaged"] += 1
-            self.plant.brake(1)
+            self.plant.brake(1, self._t_ns * 1e-9)
         self._t_ns += self.physics_dt_ns
 
     # -- services ----------------------------------------------------------------------
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         with self._lock:
             self.plant.reset()
+            self._measured_ns = None
             self._tau = None
             if self.mode == "lockstep" and not self._paused:
                 self._publish_state()

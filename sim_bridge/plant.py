@@ -7,11 +7,13 @@ Torque control done so that the plant is exactly what its parameters say:
   :attr:`Plant.warnings` says so;
 - PyBullet's own damping is switched off: the URDF's ``<dynamics damping>`` (the iiwa has
   0.5 N·m·s/rad on every joint) and Bullet's default link damping (0.04). The only friction
-  is the explicit viscous friction F of :class:`Plant`, applied as −F q̇ at every physics
-  sub-step;
+  is the explicit friction of :class:`Plant`: viscous, −F q̇ at every physics sub-step, and,
+  when set, Coulomb friction and stiction (:meth:`Plant.set_coulomb_friction`);
 - the default velocity motors of the controlled joints are disabled (zero force), so the
   commanded torque is all there is; it is held constant over every physics sub-step until
   the next command (zero-order hold) and clamped to the URDF effort limits;
+- an external wrench on a link (:meth:`Plant.hold_wrench`, :meth:`Plant.set_wrench_schedule`)
+  adds Jᵀw to the right-hand side (w applied to the robot, w = −h_e; :mod:`sim_bridge.wrench`);
 - joints of the URDF that are not controlled (gripper fingers) are locked at the same
   positions as in the controller model, by stiff position servos;
 - the payload is a point mass at the centre of mass of the last controlled joint's child
@@ -33,10 +35,50 @@ from joint_space_control.arrays import nonnegative, per_joint
 from joint_space_control.laws.limits import limit_rate, rate_steps
 from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
+from sim_bridge.wrench import WrenchSchedule, wrench_vector
 
 GRAVITY = (0.0, 0.0, -9.81)
 #: Force [N or N·m] of the servos that lock the joints that are not controlled.
 LOCK_FORCE = 1.0e4
+#: A joint with stiction is stuck below this speed [rad/s or m/s]: the friction it can exert
+#: there is the static F_s, above it the Coulomb F_c.
+STICTION_SPEED = 1.0e-3
+#: Bullet's constraint solver while Coulomb friction is on: every iteration run (no early
+#: stop on the residual), enough of them that a stuck arm stays stuck (drift ~1e-10 rad/s
+#: on the iiwa, against ~3e-4 rad/s with the defaults, where the coupled joints creep).
+FRICTION_SOLVER = {"numSolverIterations": 100, "solverResidualThreshold": 0.0}
+#: PyBullet's defaults, restored when Coulomb friction is switched off again.
+DEFAULT_SOLVER = {"numSolverIterations": 50, "solverResidualThreshold": 1.0e-7}
+
+
+def coulomb_bounds(
+    coulomb: float | Sequence[float], static: float | Sequence[float], n: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(F_c, F_s) per joint, checked: both ≥ 0, F_s = F_c where ``static`` is 0, otherwise
+    F_s ≥ F_c (n: the number of joints; None: as many as given)."""
+    if n is None:
+        n = max(np.size(coulomb), np.size(static))
+    fc = nonnegative(coulomb, n, "coulomb_friction")
+    fs = nonnegative(static, n, "static_friction")
+    fs = np.where(fs > 0, fs, fc)
+    if np.any(fs < fc):
+        raise ValueError(
+            f"'static_friction' must be 0 (= coulomb_friction) or >= coulomb_friction "
+            f"{fc.tolist()}, got {fs.tolist()}"
+        )
+    return fc, fs
+
+
+def rotation(quaternion: Sequence[float]) -> np.ndarray:
+    """The rotation matrix of a unit quaternion (x, y, z, w), PyBullet's order."""
+    x, y, z, w = quaternion
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 @dataclass
@@ -75,6 +117,11 @@ class Plant:
             raise
         self.friction = np.zeros(self.n)
         self.set_friction(friction)
+        self.coulomb = self.static = np.zeros(self.n)
+        self._coulomb_on = self._stiction = False
+        self._held: tuple[int, np.ndarray, np.ndarray] | None = None  # (link, f, μ)
+        self._schedule: tuple[int, WrenchSchedule] | None = None
+        self._origins: dict[int, np.ndarray] = {}  # link frame origin in the CoM frame
         info = pb.getDynamicsInfo(self.body, self._idx[-1], self.client)
         self._base_mass, self._last_inertia = info[0], list(info[2])
         self.payload_mass = 0.0
@@ -196,6 +243,109 @@ class Plant:
         self.friction = nonnegative(friction, self.n, "viscous_friction")
         self._has_friction = bool(np.any(self.friction))
 
+    def set_coulomb_friction(
+        self, coulomb: float | Sequence[float], static: float | Sequence[float] = 0.0
+    ) -> None:
+        r"""Coulomb friction F_c [N·m or N] and stiction F_s (0: same as F_c), per joint.
+
+        Each joint's velocity motor, with target speed 0 and at most F_c, is the friction: a
+        constraint Bullet solves with the dynamics, so a joint whose net torque stays within
+        the bound is held at rest (no chattering around q̇ = 0) and a sliding one feels
+        −F_c sign(q̇). With stiction the bound is F_s while |q̇| < :data:`STICTION_SPEED`, F_c
+        above it (re-chosen at every physics sub-step)."""
+        fc, fs = coulomb_bounds(coulomb, static, self.n)
+        was_on = self._coulomb_on
+        self.coulomb, self.static = fc, fs
+        self._coulomb_on = bool(np.any(fs))
+        self._stiction = bool(np.any(fs != fc))
+        if self._coulomb_on != was_on:
+            solver = FRICTION_SOLVER if self._coulomb_on else DEFAULT_SOLVER
+            pb.setPhysicsEngineParameter(**solver, physicsClientId=self.client)
+        if self._coulomb_on or was_on:
+            self._friction_motors(self._velocities())
+
+    def _velocities(self) -> np.ndarray:
+        states = pb.getJointStates(self.body, self._idx, physicsClientId=self.client)
+        return np.array([s[1] for s in states])
+
+    def _friction_motors(self, dq: np.ndarray) -> None:
+        """Velocity motors as Coulomb friction (force 0 when there is none)."""
+        if self._stiction:
+            forces = np.where(np.abs(dq) < STICTION_SPEED, self.static, self.coulomb)
+        else:
+            forces = self.coulomb
+        pb.setJointMotorControlArray(
+            self.body,
+            self._idx,
+            pb.VELOCITY_CONTROL,
+            targetVelocities=[0.0] * self.n,
+            forces=forces.tolist(),
+            physicsClientId=self.client,
+        )
+
+    def link_index(self, link: str) -> int:
+        """PyBullet's index of the link named ``link`` ("": the child link of the last
+        controlled joint); ValueError for the fixed base or an unknown name."""
+        if not link:
+            return self._idx[-1]
+        for j, name in self.link_names.items():
+            if name == link:
+                return j
+        known = ", ".join(self.link_names.values())
+        raise ValueError(f"no moving link '{link}' in {self.spec.name} (links: {known})")
+
+    def hold_wrench(self, link: str, force: Sequence[float], torque: Sequence[float]) -> None:
+        """Apply the wrench (force [N], torque [N·m], world frame, at the origin of the link
+        frame; applied *to* the robot) from now on, instead of the one held before; a zero
+        wrench removes it."""
+        j = self.link_index(link)
+        f, mu = wrench_vector(force, "force"), wrench_vector(torque, "torque")
+        self._held = (j, f, mu) if (np.any(f) or np.any(mu)) else None
+
+    def set_wrench_schedule(self, schedule: WrenchSchedule | None) -> None:
+        """A wrench w(t) on simulation time (None or an inactive schedule: off); adds to the
+        held one."""
+        if schedule is None or not schedule.active:
+            self._schedule = None
+        else:
+            self._schedule = (self.link_index(schedule.link), schedule)
+
+    @property
+    def has_wrench(self) -> bool:
+        return self._held is not None or self._schedule is not None
+
+    def _apply_wrench(self, t: float) -> None:
+        """The held and the scheduled wrench at time t, for the next physics step (Bullet
+        clears external forces after every step)."""
+        if self._held is not None:
+            self._push(*self._held)
+        if self._schedule is not None:
+            j, schedule = self._schedule
+            force, torque = schedule.at(t)
+            self._push(j, force, torque)
+
+    def _push(self, j: int, force: np.ndarray, torque: np.ndarray) -> None:
+        c = self.client
+        # PyBullet's link frame is the centre of mass; the URDF link frame's origin is
+        # computed from it here, in double precision (getLinkState's worldLinkFramePosition
+        # is rounded to single precision: 3e-5 m off on the iiwa's last link).
+        com, orientation = pb.getLinkState(
+            self.body, j, computeForwardKinematics=True, physicsClientId=c
+        )[:2]
+        origin = np.asarray(com) + rotation(orientation) @ self._link_origin(j)
+        pb.applyExternalForce(self.body, j, force.tolist(), origin.tolist(), pb.WORLD_FRAME, c)
+        pb.applyExternalTorque(self.body, j, torque.tolist(), pb.WORLD_FRAME, c)
+
+    def _link_origin(self, j: int) -> np.ndarray:
+        """The origin of link j's URDF frame in its centre-of-mass frame, −R_cᵀ c, with
+        (c, R_c) the inertial frame in the link frame."""
+        origin = self._origins.get(j)
+        if origin is None:
+            c, quaternion = pb.getDynamicsInfo(self.body, j, physicsClientId=self.client)[3:5]
+            origin = -rotation(quaternion).T @ np.asarray(c)
+            self._origins[j] = origin
+        return origin
+
     def set_torque_rate_limit(self, max_rate: float | Sequence[float]) -> None:
         """Limit the change of the applied torque to ``max_rate`` [N·m/s] per joint (0: no
         limit), from whatever was applied last, braking included."""
@@ -241,31 +391,39 @@ class Plant:
         dq[:] = velocities
         effort[:] = self._effort
 
-    def step(self, tau: np.ndarray, substeps: int = 1) -> None:
+    def step(self, tau: np.ndarray, substeps: int = 1, t: float = 0.0) -> None:
         """Hold the motor torque tau (clamped to the effort limits, and approached at the
         torque-rate limit if one is set) over ``substeps`` physics steps, adding the viscous
-        friction −F q̇ evaluated at each sub-step."""
+        friction −F q̇ evaluated at each sub-step, the Coulomb friction and the external
+        wrench (scheduled ones evaluated at t + k dt for sub-step k; t [s] is the
+        simulation time at the start)."""
         target = np.clip(tau, self._lowest_effort, self.effort_limits)
         tau = target
         c, body, idx = self.client, self.body, self._idx
-        for _ in range(substeps):
+        for k in range(substeps):
             if self._max_step is not None:
                 tau = limit_rate(target, self._effort, self._max_step)
                 self._effort = tau
-            if self._has_friction:
-                _, dq, _, _ = zip(*pb.getJointStates(body, idx, physicsClientId=c), strict=True)
-                applied = tau - self.friction * np.array(dq)
+            if self._has_friction or self._stiction:
+                dq = self._velocities()
+                applied = tau - self.friction * dq if self._has_friction else tau
+                if self._stiction:
+                    self._friction_motors(dq)
             else:
                 applied = tau
             pb.setJointMotorControlArray(
                 body, idx, pb.TORQUE_CONTROL, forces=applied.tolist(), physicsClientId=c
             )
+            if self._held is not None or self._schedule is not None:
+                self._apply_wrench(t + k * self.dt)
             pb.stepSimulation(physicsClientId=c)
         self._effort = tau
 
-    def brake(self, substeps: int = 1) -> None:
+    def brake(self, substeps: int = 1, t: float = 0.0) -> None:
         """Safe fallback: engage brakes, i.e. velocity servos with zero target speed and at
-        most the effort limit, so the arm stops and holds wherever it is."""
+        most the effort limit, so the arm stops and holds wherever it is (the external
+        wrench still acts, at t + k dt). Afterwards the velocity motors are the Coulomb
+        friction again (force 0 without it)."""
         c, body, idx = self.client, self.body, self._idx
         forces = np.where(np.isfinite(self.effort_limits), self.effort_limits, LOCK_FORCE)
         pb.setJointMotorControlArray(
@@ -276,13 +434,18 @@ class Plant:
             forces=forces.tolist(),
             physicsClientId=c,
         )
-        for _ in range(substeps):
+        for k in range(substeps):
+            if self._held is not None or self._schedule is not None:
+                self._apply_wrench(t + k * self.dt)
             pb.stepSimulation(physicsClientId=c)
-        _, _, _, applied = zip(*pb.getJointStates(body, idx, physicsClientId=c), strict=True)
+        _, dq, _, applied = zip(*pb.getJointStates(body, idx, physicsClientId=c), strict=True)
         self._effort = np.array(applied)
-        pb.setJointMotorControlArray(
-            body, idx, pb.VELOCITY_CONTROL, forces=[0.0] * self.n, physicsClientId=c
-        )
+        if self._coulomb_on:
+            self._friction_motors(np.array(dq))
+        else:
+            pb.setJointMotorControlArray(
+                body, idx, pb.VELOCITY_CONTROL, forces=[0.0] * self.n, physicsClientId=c
+            )
 
     def close(self) -> None:
         if pb.isConnected(self.client):

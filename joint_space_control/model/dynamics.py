@@ -200,6 +200,21 @@ class RobotModel:
         tau = pin.rnea(self.model, self.data, self._q(q), self._v(dq), self._v(ddq))
         return self._plus_friction(self._out(tau), dq)
 
+    def link_jacobian(self, q: np.ndarray, link: str) -> np.ndarray:
+        r"""J(q) of the frame of ``link`` (a URDF link name), 6 × n in joint order: the
+        velocity of the frame's origin and the angular velocity, both in world axes
+        (Pinocchio's LOCAL_WORLD_ALIGNED), [linear; angular]. A wrench w = (f, μ) applied
+        to the robot at that origin, in world axes, is the joint torque Jᵀ w; the wrench
+        h_e = −w the robot exerts on its environment enters the dynamics as −Jᵀ h_e."""
+        if not self.model.existFrame(link, pin.BODY):
+            raise ValueError(f"no link '{link}' in the model of {self.spec.name}")
+        frame = self.model.getFrameId(link, pin.BODY)
+        qc = self._q(q)
+        pin.computeJointJacobians(self.model, self.data, qc)
+        pin.updateFramePlacements(self.model, self.data)
+        jac = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL_WORLD_ALIGNED)
+        return jac if self._identity else jac[:, self._iv]
+
     # -- construction helpers --------------------------------------------------------
     def _apply_perturbation(self, pert: ModelPerturbation) -> None:
         scale = per_joint(pert.mass_scale, self.n, "mass_scale")

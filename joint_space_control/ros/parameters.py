@@ -26,6 +26,8 @@ class ParamSpec:
     - numbers: ``minimum`` (with ``exclusive``: strictly above it); ``dynamic`` numbers take
       one value or one per joint (``kp:=100`` or ``kp:=[100, 50]``);
     - ``choices``: the allowed strings;
+    - ``length``: a list of numbers with exactly this many values (a vector, say a force's
+      3 components) instead of one value or one per joint;
     - ``kind`` is inferred from the default (bool, number, string) except for lists, where it
       must be ``"numbers"`` or ``"names"``.
     """
@@ -40,6 +42,7 @@ class ParamSpec:
     exclusive: bool = False
     choices: tuple[str, ...] = ()
     kind: str = ""
+    length: int = 0
 
     @property
     def type(self) -> str:
@@ -69,7 +72,9 @@ class ParamSpec:
             parts.append(" | ".join(self.choices))
         if self.bound:
             parts.append(self.bound)
-        if self.type == "numbers":
+        if self.length:
+            parts.append(f"{self.length} values")
+        elif self.type == "numbers":
             parts.append("one value or one per joint")
         if self.unit:
             parts.append(f"[{self.unit}]")
@@ -102,7 +107,9 @@ class ParamSpec:
                 raise ValueError(f"'{name}' must be finite")
             return float(value)
         items = numbers({name: value}, name)
-        arr = per_joint(items, n, name) if n is not None else np.array(items)
+        if self.length and len(items) != self.length:
+            raise ValueError(f"'{name}' must have {self.length} values, got {len(items)}")
+        arr = per_joint(items, n, name) if n is not None and not self.length else np.array(items)
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"'{name}' must be finite, got {arr.tolist()}")
         if not self._within(arr):

@@ -80,6 +80,11 @@ def same_default(text: str, value: object) -> bool:
             return False
     if value in ("", []):
         return bool(text)
+    if isinstance(value, list):  # a vector, documented as [0, 0, 0]
+        try:
+            return [float(v) for v in yaml.safe_load(text)] == [float(v) for v in value]
+        except (TypeError, ValueError, yaml.YAMLError):
+            return False
     return text == value
 
 
