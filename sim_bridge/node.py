@@ -334,6 +334,12 @@ class SimBridge(Node):
         velocities = self.n if self._measure_velocity else 0
         self._state_image = JointStateImage(self.joints, (self.n, velocities, self.n))
         self._q, self._dq = np.zeros(self.n), np.zeros(self.n)  # true state, when measured
+        # The true state beside the measurement (imperfect measurement only): analysis of
+        # noise experiments (the true error, the true final positions).
+        self._true_image = JointStateImage(self.joints)
+        self._true_pub = self.create_publisher(
+            JointState, "~/true_joint_states", CONTROL_PUBLISHER_QOS
+        )
         self._measured_ns: int | None = None  # time of the state in the image
         self._clock_msg = Clock()
         self._effort_reader = JointStateReader(
@@ -485,14 +491,20 @@ class SimBridge(Node):
     def _publish_state(self) -> None:
         """Publish /clock and the joint state at the current time (with the lock held)."""
         image = self._state_image
+        exact = self.encoder.exact and self._measure_velocity
         if self._measured_ns != self._t_ns:  # a new state: measured once
-            if self.encoder.exact and self._measure_velocity:
+            if exact:
                 self.plant.read_state(image.position, image.velocity, image.effort)
             else:
                 self.plant.read_state(self._q, self._dq, image.effort)
                 self.encoder.measure(self._q, self._dq, image.position, image.velocity)
             self._measured_ns = self._t_ns
         image.set_stamp(self._t_ns)
+        if not exact and self._true_pub.get_subscription_count():
+            truth = self._true_image
+            truth.position[:], truth.velocity[:], truth.effort[:] = self._q, self._dq, image.effort
+            truth.set_stamp(self._t_ns)
+            self._true_pub.publish(truth.to_bytes())
         if self._clock_pub.get_subscription_count():  # volatile: nobody listening, no loss
             clock = self._clock_msg.clock
             clock.sec, clock.nanosec = divmod(self._t_ns, 1_000_000_000)

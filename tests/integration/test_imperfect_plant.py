@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 from geometry_msgs.msg import WrenchStamped
+from sensor_msgs.msg import JointState
 
 from .test_faults import ROBOT, Rig, rig  # noqa: F401  (the fixture)
 
@@ -76,11 +77,12 @@ def test_noisy_positions_without_velocities_and_rejected_wrenches(rig: Rig):  # 
 
 
 def test_lockstep_state_sent_again_carries_the_same_measurement(rig: Rig):  # noqa: F811
-    """Lockstep, nobody answering: the state at t = 0 is sent again every republish_period
-    with the same noisy, quantized positions (one measurement per simulation instant, so
-    a run does not depend on how often a state had to be sent), each a whole number of
-    counts Δ = 2π/1000, and differing from the true Q0 (the noise is on). Invalid updates of
-    the new parameters are refused with their name, valid ones accepted."""
+    """Lockstep, nobody answering: the true state (exactly Q0, at rest) is published on
+    sim_bridge/true_joint_states beside the measurement; the state at t = 0 is sent again
+    every republish_period with the same noisy, quantized positions (one measurement per
+    simulation instant, so a run does not depend on how often a state had to be sent), each
+    a whole number of counts Δ = 2π/1000, and differing from the true Q0 (the noise is on).
+    Invalid updates of the new parameters are refused with their name, valid ones accepted."""
     rig.group.start(
         "sim_bridge",
         {
@@ -94,11 +96,20 @@ def test_lockstep_state_sent_again_carries_the_same_measurement(rig: Rig):  # no
         },
     )
     probe = rig.probe
+    truth: list = []
+    probe.observe(JointState, "/sim_bridge/true_joint_states", truth.append)
     probe.spin_until(
-        lambda: len(probe.recording.stamps) >= 3, 30.0, "three sends", rig.group.check_alive
+        lambda: len(probe.recording.stamps) >= 3 and truth,
+        30.0,
+        "three sends",
+        rig.group.check_alive,
     )
     rec = probe.recording
     assert set(rec.stamps) == {0}
+    # the true state beside the measurement: exactly Q0 at rest, same stamp
+    np.testing.assert_array_equal(truth[0].position, Q0)
+    np.testing.assert_array_equal(truth[0].velocity, [0.0, 0.0])
+    assert (truth[0].header.stamp.sec, truth[0].header.stamp.nanosec) == (0, 0)
     for row in (rec.positions, rec.velocities):
         assert all(r == row[0] for r in row)
     counts = np.array(rec.positions[0]) / (2 * math.pi / 1000)
