@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from joint_space_control.analysis.bag import ControllerState
+from joint_space_control.analysis.bag import ControllerState, JointStates
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
 
@@ -41,6 +41,8 @@ class RunView:
     plant: dict = field(default_factory=dict)  # the run's sim_bridge parameters
     executable: str = ""  # the controller executable
     state: ControllerState | None = None  # its recorded ~/state, for signal checks
+    truth: JointStates | None = None  # the plant's true state (imperfect measurement only)
+    reference: dict = field(default_factory=dict)  # the scenario's reference
 
 
 def _joints(c: dict) -> list[str]:

@@ -62,6 +62,8 @@ def run_experiment(
             r.scenario.plant,
             r.scenario.controller,
             r.state,
+            r.truth,
+            r.scenario.reference,
         )
         for r in runs
         if r.error is None

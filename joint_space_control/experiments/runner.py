@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from joint_space_control.analysis.bag import ControllerState
+from joint_space_control.analysis.bag import BagReader, ControllerState, JointStates, joint_states
 from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
 from joint_space_control.experiments.loop import ClosedLoop
@@ -39,6 +39,8 @@ class RunResult:
     error: str | None = None
     state: ControllerState | None = None
     """The controller's recorded ``~/state`` as analysed (for checks that need signals)."""
+    truth: JointStates | None = None
+    """The plant's true state, recorded when its measurement is imperfect (else None)."""
 
     @property
     def controller(self) -> dict:
@@ -46,6 +48,9 @@ class RunResult:
         assert self.metrics is not None
         return self.metrics["controllers"][f"/{self.scenario.controller}"]
 
+
+#: The plant's true state beside an imperfect measurement (docs/plant.md).
+TRUTH_TOPIC = "/sim_bridge/true_joint_states"
 
 _active: set[ClosedLoop] = set()
 _active_lock = threading.Lock()
@@ -132,6 +137,15 @@ def run_once(scenario: Scenario, out: Path, short: bool, result: RunResult) -> N
     result.state = next(
         (c.state for c in analysis.analysis.controllers if c.metrics["node"] == node), None
     )
+    result.truth = true_states(bag)
+
+
+def true_states(bag: Path) -> JointStates | None:
+    """The plant's true state in the bag (``/sim_bridge/true_joint_states``), if recorded."""
+    with BagReader(bag) as reader:
+        if TRUTH_TOPIC not in reader.contents().topics:
+            return None
+        return joint_states(reader.read([TRUTH_TOPIC])[TRUTH_TOPIC])
 
 
 def _drive(loop: ClosedLoop, scenario: Scenario, duration: float, result: RunResult) -> None:

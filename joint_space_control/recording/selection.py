@@ -7,9 +7,11 @@ import re
 from collections.abc import Sequence
 
 #: Recorded when ``topics`` is empty: the loop's signals, every controller's state and
-#: configuration, simulation time, parameter changes and diagnostics.
+#: configuration, simulation time, parameter changes and diagnostics, and the plant's true
+#: state when its measurement is imperfect (published only then).
 DEFAULT_TOPICS = (
     "joint_states",
+    "sim_bridge/true_joint_states",
     "effort_command",
     "reference",
     "*/state",
