@@ -9,52 +9,16 @@ False where the theory makes a claim, None where it does not (e.g. K_P below α)
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
-from joint_space_control.analysis.bag import ControllerState, JointStates
-from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
-from joint_space_control.model.robots import resolve_robot
+from joint_space_control.experiments import practice, views
+from joint_space_control.experiments.views import Outcome, RunView
 
-
-@dataclass
-class Outcome:
-    check: str
-    passed: bool | None
-    text: str
-    numbers: dict[str, Any] = field(default_factory=dict)
-
-
-@dataclass
-class RunView:
-    """What a check needs of one run (see runner.RunResult)."""
-
-    label: str
-    robot: str
-    controller: dict  # the controller's metrics (metrics.json)
-    events: list[dict]
-    parameters: dict
-    plant: dict = field(default_factory=dict)  # the run's sim_bridge parameters
-    executable: str = ""  # the controller executable
-    state: ControllerState | None = None  # its recorded ~/state, for signal checks
-    truth: JointStates | None = None  # the plant's true state (imperfect measurement only)
-    reference: dict = field(default_factory=dict)  # the scenario's reference
-
-
-def _joints(c: dict) -> list[str]:
-    return list(c["joints"])
-
-
-def _vec(d: dict, joints: Sequence[str]) -> np.ndarray:
-    return np.array([math.nan if d.get(j) is None else d[j] for j in joints], dtype=float)
-
-
-def _fmt(x: float) -> str:
-    return "n/a" if x is None or not math.isfinite(x) else f"{x:.3g}"
+_fmt, _joints, _model, _vec = views.fmt, views.joints, views.model, views.vec
 
 
 def final_error(runs: list[RunView], tol: float = 1e-3) -> list[Outcome]:
@@ -70,10 +34,6 @@ def final_error(runs: list[RunView], tol: float = 1e-3) -> list[Outcome]:
             )
         )
     return out
-
-
-def _model(robot: str, **pert) -> RobotModel:
-    return RobotModel(resolve_robot(robot), perturbation=ModelPerturbation(**pert))
 
 
 def pd_offset(runs: list[RunView], rtol: float = 0.02) -> list[Outcome]:
@@ -293,6 +253,7 @@ CHECKS: dict[str, Callable[..., list[Outcome]]] = {
     "iterative_gravity": iterative_gravity,
     "degrades": degrades,
     "peak_torque_grows": peak_torque_grows,
+    **practice.CHECKS,
 }
 
 

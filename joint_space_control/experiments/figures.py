@@ -68,8 +68,59 @@ def overlay(result: Any, path: Path) -> None:
     plt.close(fig)
 
 
+def _numbers(result: Any, check: str) -> list[dict]:
+    return [o.numbers for o in result.outcomes if o.check == check and o.numbers]
+
+
+def targets(result: Any, path: Path) -> None:
+    """Accuracy and repeatability as targets (the ``repeatability`` check's numbers): per
+    group, at its own scale, the true final positions of the runs relative to the target
+    (first two joints, mrad), their mean (accuracy: its distance from the centre), the
+    repeatability circle around the mean, and the dead band of PD + g (dotted) where the
+    plant has friction."""
+    groups = _numbers(result, "repeatability")
+    if not groups:
+        return
+    plt = _pyplot()
+    from matplotlib.patches import Circle, Rectangle
+
+    fig, axes = plt.subplots(1, len(groups), figsize=(4.2 * len(groups), 4.2), squeeze=False)
+    for ax, g in zip(axes[0], groups, strict=True):
+        err = 1e3 * (np.array(g["finals"])[:, :2] - np.array(g["target"][:2]))
+        mean = 1e3 * np.array(g["offset"][:2])
+        band = 1e3 * np.array(g["band"][:2])
+        if np.any(band > 0):
+            ax.add_patch(
+                Rectangle(-band, 2 * band[0], 2 * band[1], fill=False, ls=":", color="grey")
+            )
+        ax.add_patch(Circle(mean, 1e3 * g["repeatability"], fill=False, color="tab:blue"))
+        ax.axhline(0, color="k", lw=0.8)
+        ax.axvline(0, color="k", lw=0.8)
+        ax.plot(err[:, 0], err[:, 1], "o", color="tab:blue", ms=5, label="final positions")
+        ax.plot(*mean, "x", color="tab:red", ms=10, mew=2, label="mean (accuracy)")
+        # each target at its own scale: the runs, their mean and the centre in view
+        lim = 1.3 * max(np.max(np.abs(err)), np.max(np.abs(mean)) + 1e3 * g["repeatability"])
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
+        ax.set_aspect("equal")
+        ax.set_xlabel(f"{g['joints'][0]} − target [mrad]")
+        ax.set_ylabel(f"{g['joints'][1]} − target [mrad]")
+        ax.set_title(
+            f"{g['group']}: accuracy {1e3 * g['accuracy']:.2g} mrad, "
+            f"repeatability {1e3 * g['repeatability']:.2g} mrad",
+            fontsize=9,
+        )
+        ax.grid(True, alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="best")
+    fig.suptitle(f"{result.scenario.title} ({result.scenario.robot})", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 FIGURES: dict[str, Callable[[Any, Path], None]] = {
     "overlay": overlay,
+    "targets": targets,
 }
 
 

@@ -34,7 +34,9 @@ def test_every_installed_scenario_loads_and_answers_a_question():
         assert s.short_duration <= s.duration
         for label, run in s.runs(short=True):
             assert run.variants is None and label
-    assert questions == set(range(1, 9))  # THEORY.md §5: experiments 1–8
+    # THEORY.md §5: experiments 1–8; §4, the practical specifications: 9 disturbance,
+    # 13 Coulomb friction, 14 accuracy and repeatability
+    assert questions == set(range(1, 9)) | {9, 13, 14}
     robots = {load(n).robot for n in scenarios}
     assert robots == {"planar_2dof", "iiwa"}
 

@@ -1,0 +1,264 @@
+"""Theory checks of the practical specifications (THEORY.md §4): disturbances, friction,
+accuracy and repeatability, sampling, bandwidth, measurement noise.
+
+Pure like :mod:`~joint_space_control.experiments.checks` (which registers these): runs in,
+:class:`~joint_space_control.experiments.views.Outcome` out, each with the measured number
+next to the prediction and the tolerance it is judged with. The numbers an experiment's
+figure draws are in ``Outcome.numbers`` (experiments/figures.py), so what is drawn is what
+was checked.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from joint_space_control.analysis.metrics import position_spread
+from joint_space_control.experiments.views import Outcome, RunView, fmt, joints, model, vec
+from joint_space_control.laws.disturbance import (
+    coulomb_dead_band,
+    inverse_dynamics_static_offset,
+    pd_gravity_static_offset,
+)
+
+#: A joint slower than this [rad/s] is at rest (the plant's stiction speed, docs/plant.md).
+REST_SPEED = 1e-3
+
+
+def _per_joint(value: Any, n: int) -> np.ndarray:
+    return np.broadcast_to(np.asarray(value if value is not None else 0.0, dtype=float), (n,))
+
+
+def _arr(x: np.ndarray, precision: int = 4) -> str:
+    return np.array2string(np.asarray(x, dtype=float), precision=precision, suppress_small=True)
+
+
+def final_true(r: RunView) -> np.ndarray:
+    """The true joint positions at the end of the run: the plant's true state when the
+    measurement was imperfect (recorded beside it), else the measured one (exact then)."""
+    names = joints(r.controller)
+    if r.truth is not None and len(r.truth.stamp):
+        cols = [r.truth.names.index(j) for j in names]
+        return np.asarray(r.truth.position[-1, cols], dtype=float)
+    return np.asarray(r.events[-1]["q"], dtype=float)
+
+
+def _law(r: RunView) -> str:
+    """``pd`` (PD + g, or PD with another gravity term), ``pid``, or the inverse dynamics
+    controller's law."""
+    if r.executable == "inverse_dynamics_controller":
+        return str(r.parameters.get("law", "inverse_dynamics"))
+    ki = _per_joint(r.parameters.get("ki"), len(joints(r.controller)))
+    return "pid" if np.any(ki > 0) else "pd"
+
+
+def _gravity_error(r: RunView, q: np.ndarray, q_d: np.ndarray) -> np.ndarray:
+    """g(q) − ĝ at rest for the run's gravity compensation (PD controllers)."""
+    g = model(r.robot).gravity(q)
+    mode = r.parameters.get("gravity_compensation", "full")
+    if mode == "none":
+        return g
+    if mode == "desired":
+        return g - model(r.robot).gravity(q_d)
+    return np.zeros_like(g)
+
+
+def wrench(r: RunView) -> tuple[str, np.ndarray]:
+    """The link and the wrench w = (f, μ) applied to the robot by the plant's schedule."""
+    link = r.plant.get("wrench_link")
+    if not link:
+        raise ValueError("the disturbance check needs plant.wrench_link (the link pushed)")
+    force = np.asarray(r.plant.get("wrench_force", [0.0] * 3), dtype=float)
+    torque = np.asarray(r.plant.get("wrench_torque", [0.0] * 3), dtype=float)
+    return str(link), np.concatenate([force, torque])
+
+
+def disturbance(runs: list[RunView], rtol: float = 0.02, atol: float = 1e-4) -> list[Outcome]:
+    """A constant wrench w on a link (h_e = −w): the rest offset e = q_d − q against the
+    prediction at the measured rest position q_f (τ_ext = J(q_f)ᵀ w):
+    PD + g: K_P e = −τ_ext (+ g − ĝ); PID: e = 0; inverse dynamics: B̂(q_f) K_P e = −τ_ext.
+    Passes when every joint is within ``rtol`` × the largest predicted offset + ``atol``."""
+    out = []
+    for r in runs:
+        names = joints(r.controller)
+        e = vec(r.controller["final_error"], names)
+        q_f = final_true(r)
+        q_d = q_f + e
+        link, w = wrench(r)
+        m = model(r.robot)
+        tau_ext = m.link_jacobian(q_f, link).T @ w
+        kp = np.asarray(r.controller["config"]["kp"], dtype=float)
+        law = _law(r)
+        if law == "pid":
+            predicted, how = np.zeros_like(e), "PID: integral action, e = 0"
+        elif law == "inverse_dynamics":
+            predicted = inverse_dynamics_static_offset(kp, m.inertia(q_f), tau_ext)
+            how = "inverse dynamics: B̂(q)K_P e = −Jᵀw"
+        else:
+            predicted = pd_gravity_static_offset(kp, tau_ext, _gravity_error(r, q_f, q_d))
+            how = "PD + g: K_P e = −Jᵀw"
+        bound = rtol * float(np.max(np.abs(predicted))) + atol
+        gap = float(np.max(np.abs(e - predicted)))
+        out.append(
+            Outcome(
+                "disturbance",
+                bool(gap <= bound),
+                f"{r.label} ({how}): rest offset e = {_arr(e)} rad vs predicted "
+                f"{_arr(predicted)} rad (largest gap {fmt(gap)} rad, tolerance {fmt(bound)}"
+                f" rad); Jᵀw = {_arr(tau_ext, 2)} N·m",
+                {
+                    "law": law,
+                    "offset": e.tolist(),
+                    "predicted": predicted.tolist(),
+                    "tau_ext": tau_ext.tolist(),
+                    "gap": gap,
+                    "tolerance": bound,
+                },
+            )
+        )
+    return out
+
+
+def _friction(r: RunView, n: int) -> tuple[np.ndarray, np.ndarray]:
+    fc = _per_joint(r.plant.get("coulomb_friction"), n)
+    fs = _per_joint(r.plant.get("static_friction"), n)
+    return fc, np.where(fs > 0, fs, fc)
+
+
+def _restarts(dq: np.ndarray) -> int:
+    """How many times a joint that had come to rest moved again (stick-slip cycles)."""
+    moving = np.abs(dq) > REST_SPEED
+    return int(np.sum(moving[1:] & ~moving[:-1]))
+
+
+def coulomb_band(runs: list[RunView], tol: float = 1e-5) -> list[Outcome]:
+    """Unmodelled Coulomb friction F_c (stiction F_s): PD + g comes to rest inside the dead
+    band |K_P,i e_i| ≤ max(F_c,i, F_s,i) (checked, ``tol`` rad of slack); PID removes the
+    offset but may hunt (stick-slip): reported with its cycles and its last offset, no claim
+    (the theory gives no bound for it)."""
+    out = []
+    for r in runs:
+        names = joints(r.controller)
+        n = len(names)
+        e = vec(r.controller["final_error"], names)
+        fc, fs = _friction(r, n)
+        kp = np.asarray(r.controller["config"]["kp"], dtype=float)
+        band = coulomb_dead_band(kp, fc, fs)
+        state = r.state
+        cycles, mean_abs = 0, np.abs(e)
+        if state is not None:
+            half = len(state) // 2
+            cycles = sum(_restarts(state.rows["dq"][half:, j]) for j in range(n))
+            mean_abs = np.mean(np.abs(state.rows["error"][half:]), axis=0)
+        if _law(r) == "pd":
+            inside = bool(np.all(np.abs(e) <= band + tol))
+            text = (
+                f"{r.label} (PD + g): rest offset |e| = {_arr(np.abs(e))} rad inside the dead "
+                f"band {_arr(band)} rad = F_s/K_P: {'yes' if inside else 'NO'}; "
+                f"|K_P e| = {_arr(np.abs(kp * e), 2)} N·m vs F_s = {_arr(fs, 2)} N·m"
+            )
+            passed: bool | None = inside
+        else:
+            text = (
+                f"{r.label} ({_law(r)}): last |e| = {_arr(np.abs(e))} rad (dead band of PD: "
+                f"{_arr(band)} rad), mean |e| over the second half {_arr(mean_abs)} rad, "
+                f"{cycles} stick-slip restarts in the second half"
+                + (" (hunting)" if cycles > 1 else "")
+            )
+            passed = None
+        out.append(
+            Outcome(
+                "coulomb_band",
+                passed,
+                text,
+                {
+                    "law": _law(r),
+                    "offset": e.tolist(),
+                    "band": band.tolist(),
+                    "restarts": cycles,
+                    "mean_abs_error_second_half": np.asarray(mean_abs).tolist(),
+                },
+            )
+        )
+    return out
+
+
+def _group(label: str) -> str:
+    """Runs ``pd-1``, ``pd-2``, ``pid-1`` … form the groups ``pd`` and ``pid``."""
+    return label.rsplit("-", 1)[0]
+
+
+def repeatability(runs: list[RunView], tol: float = 1e-5) -> list[Outcome]:
+    """The same move repeated (runs ``GROUP-k``, different noise seeds): per group, the spread
+    of the true final positions (repeatability, ISO 9283 RP) and its mean offset from the
+    target (accuracy, AP). Where the plant has Coulomb friction and the law is PD + g, every
+    run must stop inside the dead band; without friction, zero-mean noise must leave the mean
+    on the target within 3 standard errors and half an encoder count (both checked); the
+    spread itself is reported."""
+    groups: dict[str, list[RunView]] = {}
+    for r in runs:
+        groups.setdefault(_group(r.label), []).append(r)
+    out = []
+    for name, members in groups.items():
+        if len(members) < 2:
+            raise ValueError(f"repeatability: group '{name}' has one run; name runs GROUP-k")
+        first = members[0]
+        names = joints(first.controller)
+        target = np.asarray(first.reference["target"], dtype=float)
+        finals = np.array([final_true(r) for r in members])
+        spread = position_spread(finals, target)
+        fc, fs = _friction(first, len(names))
+        kp = np.asarray(first.controller["config"]["kp"], dtype=float)
+        band = coulomb_dead_band(kp, fc, fs) if np.any(fs > 0) else np.zeros(len(names))
+        claim: bool | None = None
+        unbiased = np.zeros(len(names))
+        if np.any(fs > 0) and _law(first) == "pd":
+            claim = bool(np.all(np.abs(finals - target) <= band + tol))
+        elif not np.any(fs > 0):
+            # zero-mean noise on a linear loop: the mean lands on the target within its own
+            # uncertainty (3 standard errors) and half an encoder count
+            counts = _per_joint(first.plant.get("encoder_counts"), len(names))
+            quantum = np.where(counts > 0, 2 * np.pi / np.where(counts > 0, counts, 1), 0.0)
+            sem = spread["three_sigma"] / 3.0 / np.sqrt(len(members))
+            unbiased = 3.0 * sem + quantum / 2.0
+            claim = bool(np.all(np.abs(spread["offset"]) <= unbiased))
+        out.append(
+            Outcome(
+                "repeatability",
+                claim,
+                f"{name}: {len(members)} runs; accuracy (mean offset) "
+                f"{fmt(1e3 * spread['accuracy'])} mrad, offset {_arr(1e3 * spread['offset'], 3)}"
+                f" mrad; repeatability (l̄ + 3S_l) {fmt(1e3 * spread['repeatability'])} mrad, "
+                f"largest distance from the mean {fmt(1e3 * spread['max_distance'])} mrad"
+                + (
+                    f"; every run inside the dead band {_arr(1e3 * band, 3)} mrad: "
+                    + ("yes" if claim else "NO")
+                    if np.any(band > 0) and claim is not None
+                    else ""
+                )
+                + (
+                    f"; no friction: mean offset within 3 standard errors + Δ/2 = "
+                    f"{_arr(1e3 * unbiased, 3)} mrad: " + ("yes" if claim else "NO")
+                    if np.any(unbiased > 0)
+                    else ""
+                ),
+                {
+                    "group": name,
+                    "joints": names,
+                    "target": target.tolist(),
+                    "finals": finals.tolist(),
+                    "band": band.tolist(),
+                    **{k: np.asarray(v).tolist() for k, v in spread.items()},
+                },
+            )
+        )
+    return out
+
+
+CHECKS: dict[str, Callable[..., list[Outcome]]] = {
+    "disturbance": disturbance,
+    "coulomb_band": coulomb_band,
+    "repeatability": repeatability,
+}
