@@ -118,9 +118,109 @@ def targets(result: Any, path: Path) -> None:
     plt.close(fig)
 
 
+def sampling(result: Any, path: Path) -> None:
+    """Overshoot against the control period T_s (the ``sampled_loop`` check's numbers): the
+    points measured at the samples, the sampled loop's prediction at the samples and its
+    peak between them as curves, the continuous theory, and the
+    predicted stability limit; runs that diverged are marked at the top."""
+    runs = [n for n in _numbers(result, "sampled_loop") if "period" in n]
+    if not runs:
+        return
+    from joint_space_control.laws.sampled import sampled_step_prediction
+
+    plt = _pyplot()
+    kp, kd, h = runs[0]["kp"], runs[0]["kd"], runs[0]["physics_dt"]
+    limit = runs[0]["stability_limit"]
+    grid = np.arange(1, int(limit / h) + 1) * h
+    predictions = [sampled_step_prediction(kp, kd, T, h) for T in grid]
+    curve = [p["overshoot_percent_sampled"] for p in predictions]
+    peak = [p["overshoot_percent"] for p in predictions]
+    omega_n, zeta = np.sqrt(kp), kd / (2 * np.sqrt(kp))
+    fig, ax = plt.subplots(figsize=(7.5, 4.2))
+    ax.plot(1e3 * grid, curve, "-", color="tab:blue", label="prediction at the samples")
+    ax.plot(
+        1e3 * grid, peak, "-", color="tab:cyan", lw=0.8, label="prediction, peak between samples"
+    )
+    if zeta < 1:
+        m_p = 100 * np.exp(-np.pi * zeta / np.sqrt(1 - zeta**2))
+        ax.axhline(m_p, color="grey", ls=":", label=f"continuous theory {m_p:.2g} %")
+    ax.axvline(
+        1e3 * limit, color="tab:red", ls="--", label=f"predicted limit {1e3 * limit:.3g} ms"
+    )
+    top = max(max(peak), *(n["overshoot"] or 0 for n in runs if not n["diverged"])) * 1.15
+    for n in runs:
+        if n["diverged"]:
+            ax.plot(1e3 * n["period"], top, "x", color="tab:red", ms=9, mew=2)
+        else:
+            ax.plot(1e3 * n["period"], n["overshoot"], "o", color="k", ms=5)
+    ax.plot([], [], "o", color="k", label="measured")
+    ax.plot([], [], "x", color="tab:red", label="measured: diverges")
+    ax.set_ylim(0, top * 1.08)
+    ax.set_xlabel("control period T_s [ms]")
+    ax.set_ylabel("overshoot [%]")
+    ax.set_title(
+        f"{result.scenario.title}\n(ω_n = {omega_n:.3g} rad/s, ζ = {zeta:.3g}, physics "
+        f"{1e3 * h:g} ms)",
+        fontsize=10,
+    )
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def bode(result: Any, path: Path) -> None:
+    """Gain and phase of q against q_d (the ``frequency_response`` check's numbers): the
+    measured points beside G(jω) of the theory, and the predicted and measured −3 dB
+    bandwidths; full-feedforward runs (exact tracking predicted) drawn apart."""
+    points = [n for n in _numbers(result, "frequency_response") if "omega" in n]
+    if not points:
+        return
+    from joint_space_control.laws.second_order import second_order_frequency_response
+
+    plt = _pyplot()
+    omega_n, zeta = points[0]["omega_n"], points[0]["zeta"]
+    omegas = [n["omega"] for n in points]
+    w = np.logspace(np.log10(min(omegas) / 2), np.log10(max(omegas) * 2), 400)
+    g = second_order_frequency_response(w, omega_n, zeta)
+    fig, (ax_g, ax_p) = plt.subplots(2, 1, figsize=(7.5, 6), sharex=True)
+    ax_g.semilogx(w, 20 * np.log10(np.abs(g)), color="tab:blue", label="G(jω), theory")
+    ax_p.semilogx(w, np.degrees(np.angle(g)), color="tab:blue")
+    for n, marker, label in (
+        ([p for p in points if p["regulation"]], "o", "measured, regulation form"),
+        ([p for p in points if not p["regulation"]], "s", "measured, full feedforward (→ 1)"),
+    ):
+        if n:
+            x = [p["omega"] for p in n]
+            ax_g.semilogx(x, [20 * np.log10(p["gain"]) for p in n], marker, color="k", label=label)
+            ax_p.semilogx(x, [np.degrees(p["phase"]) for p in n], marker, color="k")
+    summary = [n for n in _numbers(result, "frequency_response") if "bandwidth" in n]
+    if summary:
+        b = summary[0]
+        ax_g.axvline(b["bandwidth_predicted"], color="tab:red", ls="--", label="ω_b predicted")
+        if b["bandwidth"] is not None and np.isfinite(b["bandwidth"]):
+            ax_g.axvline(b["bandwidth"], color="k", ls=":", label="ω_b measured")
+    ax_g.axhline(-3.0103, color="grey", lw=0.8)
+    ax_g.set_ylabel("gain [dB]")
+    ax_p.set_ylabel("phase [°]")
+    ax_p.set_xlabel("ω [rad/s]")
+    for ax in (ax_g, ax_p):
+        ax.grid(True, which="both", alpha=0.3)
+    ax_g.legend(fontsize=8, loc="lower left")
+    ax_g.set_title(
+        f"{result.scenario.title}\n(ω_n = {omega_n:.3g} rad/s, ζ = {zeta:.3g})", fontsize=10
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 FIGURES: dict[str, Callable[[Any, Path], None]] = {
     "overlay": overlay,
     "targets": targets,
+    "sampling": sampling,
+    "bode": bode,
 }
 
 

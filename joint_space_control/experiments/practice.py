@@ -15,12 +15,18 @@ from typing import Any
 
 import numpy as np
 
+from joint_space_control.analysis import frequency
 from joint_space_control.analysis.metrics import position_spread
 from joint_space_control.experiments.views import Outcome, RunView, fmt, joints, model, vec
 from joint_space_control.laws.disturbance import (
     coulomb_dead_band,
     inverse_dynamics_static_offset,
     pd_gravity_static_offset,
+)
+from joint_space_control.laws.sampled import sampled_stability_limit, sampled_step_prediction
+from joint_space_control.laws.second_order import (
+    second_order_bandwidth,
+    second_order_frequency_response,
 )
 
 #: A joint slower than this [rad/s] is at rest (the plant's stiction speed, docs/plant.md).
@@ -257,8 +263,195 @@ def repeatability(runs: list[RunView], tol: float = 1e-5) -> list[Outcome]:
     return out
 
 
+def _second_order(r: RunView, j: int) -> tuple[float, float, float, float]:
+    """K_P, K_D of joint j (the acceleration gains of inverse dynamics) and ω_n, ζ."""
+    kp = float(r.controller["config"]["kp"][j])
+    kd = float(r.controller["config"]["kd"][j])
+    return kp, kd, float(np.sqrt(kp)), kd / (2.0 * np.sqrt(kp))
+
+
+def _moving_joint(q_d: np.ndarray, q0: np.ndarray) -> int:
+    return int(np.argmax(np.abs(q_d - q0)))
+
+
+def _period(r: RunView) -> tuple[float, float]:
+    """The control period T_s = 1/rate and the plant's physics step [s]."""
+    physics_dt = 1.0 / float(r.plant.get("physics_rate", 1000.0))
+    return 1.0 / float(r.parameters.get("rate", 1000.0)), physics_dt
+
+
+def _diverges(y: np.ndarray) -> bool:
+    """The normalized step response y (→ 1) grows instead of settling: its largest error in
+    the last quarter is above the one in the second quarter (or it is not finite)."""
+    if not np.all(np.isfinite(y)):
+        return True
+    k = len(y) // 4
+    return bool(np.max(np.abs(y[3 * k :] - 1.0)) > np.max(np.abs(y[k : 2 * k] - 1.0)))
+
+
+def sampled_loop(runs: list[RunView], overshoot_pp: float = 0.5) -> list[Outcome]:
+    """Inverse dynamics, nominal model, a step on one joint, the law sampled at T_s and the
+    torque held (``rate``, lockstep): each joint is the sampled double integrator of
+    :mod:`joint_space_control.laws.sampled` (state sampled at the start of each period,
+    integrated by the plant's semi-implicit Euler steps). Per run: the overshoot measured at
+    the samples (the controller's ``~/state``, once per period) against the prediction at
+    the same instants (``overshoot_pp`` percentage points) where the prediction is stable,
+    divergence where it is not; then the stability limit T_s* against the bracket the runs
+    give (the largest stable and the smallest diverging T_s)."""
+    out, stable_ts, unstable_ts, limits = [], [], [], []
+    for r in runs:
+        if r.state is None:
+            raise ValueError(f"{r.label}: no recorded controller state")
+        t, q, q_d = r.state.stamp, r.state.rows["q"], r.state.rows["q_d"]
+        j = _moving_joint(q_d[-1], q[0])
+        kp, kd, omega_n, zeta = _second_order(r, j)
+        period, physics_dt = _period(r)
+        y = (q[:, j] - q[0, j]) / (q_d[-1, j] - q[0, j])
+        measured_os = (
+            max(0.0, 100.0 * (float(np.max(y)) - 1.0)) if np.all(np.isfinite(y)) else np.inf
+        )
+        diverged = _diverges(y)
+        p = sampled_step_prediction(kp, kd, period, physics_dt, duration=float(t[-1] - t[0]))
+        limit = sampled_stability_limit(kp, kd, physics_dt)
+        limits.append(limit)
+        (unstable_ts if diverged else stable_ts).append(period)
+        continuous = 100 * np.exp(-np.pi * zeta / np.sqrt(1 - zeta**2)) if zeta < 1 else 0.0
+        if p["stable"]:
+            predicted = p["overshoot_percent_sampled"]
+            ok = not diverged and abs(measured_os - predicted) <= overshoot_pp
+            text = (
+                f"{r.label}: T_s = {1e3 * period:.3g} ms, overshoot at the samples "
+                f"{fmt(measured_os)} % vs {fmt(predicted)} % predicted for the sampled loop "
+                f"(between samples the plant peaks at {fmt(p['overshoot_percent'])} %; "
+                f"spectral radius {p['spectral_radius']:.3f}; continuous theory "
+                f"{fmt(continuous)} %)"
+            )
+        else:
+            ok = diverged
+            text = (
+                f"{r.label}: T_s = {1e3 * period:.3g} ms beyond the predicted limit "
+                f"{1e3 * limit:.4g} ms (spectral radius {p['spectral_radius']:.3f}): "
+                + ("diverges, as predicted" if diverged else "does NOT diverge")
+            )
+        out.append(
+            Outcome(
+                "sampled_loop",
+                bool(ok),
+                text,
+                {
+                    "period": period,
+                    "overshoot": measured_os if np.isfinite(measured_os) else None,
+                    "overshoot_predicted": p["overshoot_percent_sampled"],
+                    "overshoot_between_samples": p["overshoot_percent"],
+                    "spectral_radius": p["spectral_radius"],
+                    "diverged": diverged,
+                    "stable_predicted": bool(p["stable"]),
+                    "kp": kp,
+                    "kd": kd,
+                    "physics_dt": physics_dt,
+                    "stability_limit": limit,
+                },
+            )
+        )
+    limit = limits[0]
+    below = max(stable_ts, default=0.0)
+    above = min(unstable_ts, default=np.inf)
+    ok = bool(below < limit <= above and below < above)
+    out.append(
+        Outcome(
+            "sampled_loop",
+            ok,
+            f"stability limit: predicted T_s* = {1e3 * limit:.4g} ms; the runs are stable up to "
+            f"{1e3 * below:.3g} ms and diverge from {1e3 * above:.3g} ms"
+            + ("" if ok else " (the prediction is NOT in between)"),
+            {"stability_limit": limit, "largest_stable": below, "smallest_unstable": above},
+        )
+    )
+    return out
+
+
+def _settle_time(zeta: float, omega_n: float) -> float:
+    """After this long the transient of a step into G(s) is below e⁻⁸ (3·10⁻⁴) of it."""
+    return 8.0 / (min(zeta, 1.0) * omega_n)
+
+
+def frequency_response(
+    runs: list[RunView], gain_tol: float = 0.02, phase_tol: float = 0.05, rtol: float = 0.05
+) -> list[Outcome]:
+    """Sinusoidal references q_d = q̄ + Δ sin ωt on one joint, inverse dynamics with a nominal
+    model: the measured gain |Q/Q_d| and phase against G(jω) = ω_n²/(s² + 2ζω_n s + ω_n²) for
+    the regulation form (``reference_derivatives: false``), and against 1 (exact tracking)
+    with the full feedforward; then the −3 dB bandwidth from the regulation runs against
+    ω_b = ω_n √(1 − 2ζ² + √(2 − 4ζ² + 4ζ⁴)) within ``rtol``. Fitted over the whole periods
+    after the transient has decayed (8/(ζω_n))."""
+    out, points = [], []
+    omega_n = zeta = float("nan")
+    for r in runs:
+        if r.state is None:
+            raise ValueError(f"{r.label}: no recorded controller state")
+        omega = float(r.reference["omega"])
+        amplitude = np.abs(np.asarray(r.reference["amplitude"], dtype=float))
+        j = int(np.argmax(amplitude))
+        _, _, omega_n, zeta = _second_order(r, j)
+        t = r.state.stamp
+        fit = frequency.frequency_response(
+            t,
+            r.state.rows["q_d"][:, j],
+            r.state.rows["q"][:, j],
+            omega,
+            t[0] + _settle_time(zeta, omega_n),
+        )
+        gain, phase = float(fit.gain[0]), float(fit.phase[0])
+        regulation = not r.parameters.get("reference_derivatives", True)
+        g = complex(second_order_frequency_response(omega, omega_n, zeta)) if regulation else 1.0
+        ok = (
+            abs(gain - abs(g)) <= gain_tol * max(abs(g), 0.1)
+            and abs(phase - np.angle(g)) <= phase_tol
+        )
+        form = "regulation form, G(jω)" if regulation else "full feedforward, 1"
+        out.append(
+            Outcome(
+                "frequency_response",
+                bool(ok),
+                f"{r.label} (ω = {omega:.3g} rad/s, {form}): gain {gain:.4f} vs {abs(g):.4f}, "
+                f"phase {np.degrees(phase):.2f}° vs {np.degrees(np.angle(g)):.2f}° "
+                f"({fit.periods} periods fitted)",
+                {
+                    "omega": omega,
+                    "gain": gain,
+                    "phase": phase,
+                    "gain_predicted": abs(g),
+                    "phase_predicted": float(np.angle(g)),
+                    "regulation": regulation,
+                    "omega_n": omega_n,
+                    "zeta": zeta,
+                },
+            )
+        )
+        if regulation:
+            points.append((omega, gain))
+    if points:
+        points.sort()
+        measured = frequency.bandwidth([p[0] for p in points], [p[1] for p in points])
+        predicted = float(second_order_bandwidth(omega_n, zeta))
+        ok = bool(np.isfinite(measured) and abs(measured - predicted) <= rtol * predicted)
+        out.append(
+            Outcome(
+                "frequency_response",
+                ok,
+                f"−3 dB bandwidth {fmt(measured)} rad/s measured vs {predicted:.4g} rad/s "
+                f"predicted (ω_n = {omega_n:.3g} rad/s, ζ = {zeta:.3g}; tolerance "
+                f"{100 * rtol:g} %)",
+                {"bandwidth": measured, "bandwidth_predicted": predicted},
+            )
+        )
+    return out
+
+
 CHECKS: dict[str, Callable[..., list[Outcome]]] = {
     "disturbance": disturbance,
     "coulomb_band": coulomb_band,
     "repeatability": repeatability,
+    "sampled_loop": sampled_loop,
+    "frequency_response": frequency_response,
 }
