@@ -64,6 +64,11 @@ class BackwardDifference:
         self._q: np.ndarray | None = None
         self.estimate: np.ndarray = self._zero
 
+    @property
+    def previous(self) -> tuple[float, np.ndarray] | None:
+        """The last sample (t [s], q), None before the first."""
+        return None if self._t is None else (self._t, self._q)
+
     def observe(self, t: float, q: np.ndarray) -> None:
         """Remember (t, q) as the previous sample without estimating (while the measured
         velocity is used): a later switch to this estimator has a predecessor at once."""
