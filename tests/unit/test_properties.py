@@ -678,7 +678,7 @@ def published(joints, limits, q, dq, ref: Sample, split: TorqueSplit):
         return None
     command = JointStateImage(joints, (0, 0, n))
     state = Float64ArrayImage(state_message(joints), 1 + len(STATE_FIELDS) * n)
-    fill_images(command, state, 1_500_000_000, q, dq, step)
+    fill_images(command, state, 1_500_000_000, step)
     return command.to_bytes(), state.to_bytes()
 
 
