@@ -25,6 +25,15 @@ references it receives; once the plant is known to be lockstep, the newest waiti
 is answered at once. The resolved trigger is logged and shown in ``~/config`` and on
 /diagnostics (``trigger``; ``pending`` while unknown).
 
+Sampling (:mod:`~joint_space_control.control.sampling`, docs/parameters.md "Sampling and
+velocity"): ``rate`` is the control rate with either trigger; answering states, the core
+computes a torque at the states on the 1/rate grid and this node answers the states in
+between with the held command (``~/state`` is published once per control period). The q̇ the
+law uses is the measured one or an estimate from the positions (``velocity_source``); an
+empty velocity array is a well-formed state (a plant that does not measure velocity) unless
+the velocity must be measured. /diagnostics adds ``control_period`` (realised) and
+``velocity`` (in use).
+
 Stale states: with the timer, the node stops commanding when no joint state *arrived* for
 ``state_timeout`` seconds, measured on its own steady clock at receipt (not by comparing
 the states' stamps, simulation time, with the node clock), and restarts from the measured
