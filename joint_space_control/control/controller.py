@@ -184,14 +184,14 @@ class Controller:
         unless the velocity source is ``measured`` (then ValueError). Between two control
         periods (:class:`~joint_space_control.control.sampling.ControlPeriod`) it returns the
         step of the period, the same object."""
-        if self.control_period.period > 0.0:
-            held = self._held_step
-            if not self.control_period.due(t) and held is not None:
-                return held
-            self.control_period.computed(t)
+        periodic = self.control_period.period > 0.0
+        if periodic and not self.control_period.due(t) and self._held_step is not None:
+            return self._held_step
         if self.config.gains is None:
             self.design_at(q)
         dq = self._velocity(t if state_time is None else state_time, q, dq)
+        if periodic:  # a period starts here (not when the velocity was refused)
+            self.control_period.computed(t)
         dt = 0.0 if self._t_last is None else min(max(t - self._t_last, 0.0), MAX_DT)
         self._t_last = t
         ref = self.sample(t, q)
@@ -206,7 +206,7 @@ class Controller:
         tau = np.clip(unclamped, self._lowest_effort, self.effort_limits)
         self.after_step(ref, q, unclamped, dt)
         step = Step(ref, split, unclamped, tau, q, dq)
-        if self.control_period.period > 0.0:
+        if periodic:
             self._held_step = step
         return step
 
