@@ -193,3 +193,19 @@ def test_regulation_form_drops_the_reference_derivatives(model):
     np.testing.assert_allclose(regulation.unclamped, expected, rtol=1e-12, atol=1e-12)
     y = 64.0 * e + 8.0 * (full.ref.dq - dq) + full.ref.ddq
     np.testing.assert_allclose(full.unclamped, model.rnea(q, dq, y), rtol=1e-10)
+
+
+def test_after_a_non_finite_torque_the_next_state_is_computed_again(model):
+    """Nothing was sent for the non-finite step, so there is nothing to hold: the next state
+    starts a new period (and the one after it is held again)."""
+    c = pd(model, Sampling(period=10 * MS))
+    q = np.array([0.3, -0.2])
+    assert c.step(0.0, q, np.zeros(2)).tau is not None
+    assert c.step(1 * MS, q, np.zeros(2)).tau is not None  # held
+    c.restart()  # a period starts at the next state, which makes the law non-finite
+    bad = c.step(2 * MS, q, np.array([np.nan, 0.0]))
+    assert bad.tau is None
+    good = c.step(3 * MS, q, np.zeros(2))
+    assert good.tau is not None and good is not bad
+    # inside good's period the state is not used (the node rejects non-finite states anyway)
+    assert c.step(4 * MS, q, np.array([np.nan, 0.0])) is good
