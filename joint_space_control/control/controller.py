@@ -1,7 +1,17 @@
 """What every joint controller does between a measured state and a clamped torque.
 
-    step(t, q, q̇) → reference sample (q_d, q̇_d, q̈_d) at t → law → τ split
+    step(t, q, q̇) → new control period? (else: the held step) → velocity (measured or
+                  estimated) → reference sample (q_d, q̇_d, q̈_d) at t → law → τ split
                   → non-finite gate → τ clamped to ±effort limits → law state updated
+
+How it samples (:class:`~joint_space_control.control.sampling.Sampling`, swapped whole with
+:meth:`Controller.set_sampling`): the velocity the law uses (the measured q̇, or an estimate
+from the measured positions over the states' stamps, :mod:`joint_space_control.laws.
+velocity`), whether the reference's q̇_d, q̈_d are used (else 0: the regulation form), and
+the control period T_s: with T_s > 0 a torque is computed at the states on a 1/T_s grid
+(:class:`~joint_space_control.control.sampling.ControlPeriod`) and the states in between are
+answered with the same step (zero-order hold). Integrators and estimators see the realised
+period: they are stepped at the computed states only.
 
 References are scheduled by their start time: a trajectory that starts at or before t
 replaces the active reference from its start on, continuing from the sample active then.
@@ -17,7 +27,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from joint_space_control.control.sampling import ControlPeriod, Sampling, VelocitySource
 from joint_space_control.laws.split import TorqueSplit
+from joint_space_control.laws.velocity import BackwardDifference, FilteredDifference
 from joint_space_control.trajectories.reference import Reference, Sample, Trajectory
 
 #: Longest time step integrated at once [s]; longer gaps (start-up, pauses) are cut.
@@ -25,14 +37,17 @@ MAX_DT = 0.1
 
 
 class Step(NamedTuple):
-    """One control step: the reference sample, the torque split [N·m], the torque before and
-    after clamping to the effort limits [N·m]; ``tau`` is None when the law gave a non-finite
-    torque (NaN passes through a clamp): nothing must be sent then."""
+    """One control step: the reference sample the law used, the torque split [N·m], the
+    torque before and after clamping to the effort limits [N·m]; ``tau`` is None when the law
+    gave a non-finite torque (NaN passes through a clamp): nothing must be sent then. ``q``
+    and ``dq`` are the state the law used (``dq`` measured or estimated)."""
 
     ref: Sample
     split: TorqueSplit
     unclamped: np.ndarray
     tau: np.ndarray | None
+    q: np.ndarray | None = None
+    dq: np.ndarray | None = None
 
 
 class Controller:
@@ -43,7 +58,9 @@ class Controller:
     #: True when gains designed from ω_n, ζ depend on the configuration (:meth:`design_gains`).
     GAINS_NEED_CONFIGURATION = False
 
-    def __init__(self, config: Any, effort_limits: np.ndarray) -> None:
+    def __init__(
+        self, config: Any, effort_limits: np.ndarray, sampling: Sampling | None = None
+    ) -> None:
         self.effort_limits = np.asarray(effort_limits, dtype=float)
         self._lowest_effort = -self.effort_limits
         self.n = self.effort_limits.size
@@ -54,6 +71,15 @@ class Controller:
         self._reference_end = np.inf  # time of its last knot after its start [s]
         self._held: Sample | None = None  # its sample from then on
         self._pending: list[Trajectory] = []
+        self.sampling = Sampling()
+        self.control_period = ControlPeriod()
+        self._estimator: BackwardDifference | None = None
+        #: The velocity the last computed step used (a VelocitySource, never AUTO).
+        self.velocity_used: VelocitySource | None = None
+        self._held_step: Step | None = None
+        self._zero = np.zeros(self.n)
+        self._zero.setflags(write=False)
+        self.set_sampling(sampling or Sampling())
         self.reset_state()
 
     # -- to be provided by the concrete controller -----------------------------------
@@ -79,6 +105,28 @@ class Controller:
             config = self.design_gains(config, self.q0)
         self.config = config
 
+    def set_sampling(self, sampling: Sampling) -> None:
+        """Swap the sampling settings whole. A new estimator starts from the last sample it
+        observed; a new control period starts at the next state."""
+        old, self.sampling = self.sampling, sampling
+        if sampling.period != self.control_period.period:
+            self.control_period.period = sampling.period
+            self.control_period.reset()
+            self._held_step = None
+        kind = (
+            BackwardDifference
+            if sampling.velocity is VelocitySource.BACKWARD_DIFFERENCE
+            else FilteredDifference
+        )
+        estimator = self._estimator
+        if estimator is None or type(estimator) is not kind:
+            new = kind(self.n) if kind is BackwardDifference else kind(self.n, sampling.cutoff)
+            if estimator is not None and estimator.previous is not None:
+                new.observe(*estimator.previous)
+            self._estimator = new
+        elif isinstance(estimator, FilteredDifference) and sampling.cutoff != old.cutoff:
+            estimator.cutoff = sampling.cutoff
+
     @property
     def gains_pending(self) -> bool:
         """True until the gains are designed at the first measured configuration."""
@@ -101,6 +149,9 @@ class Controller:
         self._pending = []
         self._t_last = None
         self.reset_state()
+        self._estimator.reset()
+        self.control_period.reset()
+        self._held_step = None
         self.q0 = None
         if self.GAINS_NEED_CONFIGURATION and self.config.choice.designed:
             self.config = dataclasses.replace(self.config, gains=None)
@@ -124,19 +175,50 @@ class Controller:
         self._reference_end = reference.end
 
     # -- the step --------------------------------------------------------------------
-    def step(self, t: float, q: np.ndarray, dq: np.ndarray) -> Step:
-        """The torque for the state (q, q̇) measured at t [s] (``tau`` None when the law gave
-        a non-finite torque: nothing is integrated across that gap)."""
+    def step(
+        self, t: float, q: np.ndarray, dq: np.ndarray, state_time: float | None = None
+    ) -> Step:
+        """The torque for the state (q, q̇) measured at ``state_time`` (default ``t``) [s],
+        at the controller's time t [s] (``tau`` None when the law gave a non-finite torque:
+        nothing is integrated across that gap). ``dq`` may be empty (no measured velocity)
+        unless the velocity source is ``measured`` (then ValueError). Between two control
+        periods (:class:`~joint_space_control.control.sampling.ControlPeriod`) it returns the
+        step of the period, the same object."""
+        periodic = self.control_period.period > 0.0
+        if periodic and not self.control_period.due(t) and self._held_step is not None:
+            return self._held_step
         if self.config.gains is None:
             self.design_at(q)
+        dq = self._velocity(t if state_time is None else state_time, q, dq)
+        if periodic:  # a period starts here (not when the velocity was refused)
+            self.control_period.computed(t)
         dt = 0.0 if self._t_last is None else min(max(t - self._t_last, 0.0), MAX_DT)
         self._t_last = t
         ref = self.sample(t, q)
+        if not self.sampling.reference_derivatives:
+            ref = Sample(ref.q, self._zero, self._zero)
         split = self.compute(q, dq, ref, dt)
         unclamped = split.total
         if not np.isfinite(unclamped).all():
             self._t_last = None
-            return Step(ref, split, unclamped, None)
+            self._held_step = None  # the next state is computed again
+            return Step(ref, split, unclamped, None, q, dq)
         tau = np.clip(unclamped, self._lowest_effort, self.effort_limits)
         self.after_step(ref, q, unclamped, dt)
-        return Step(ref, split, unclamped, tau)
+        step = Step(ref, split, unclamped, tau, q, dq)
+        if periodic:
+            self._held_step = step
+        return step
+
+    def _velocity(self, t: float, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """The q̇ the law uses: measured, or estimated from the positions (sampling)."""
+        source = self.sampling.velocity
+        if source is VelocitySource.AUTO:
+            source = VelocitySource.MEASURED if dq.size else VelocitySource.FILTERED_DIFFERENCE
+        self.velocity_used = source
+        if source is VelocitySource.MEASURED:
+            if dq.size != self.n:
+                raise ValueError("velocity_source is 'measured' but the state has no velocity")
+            self._estimator.observe(t, q)
+            return dq
+        return self._estimator.update(t, q)

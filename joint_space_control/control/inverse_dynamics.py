@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from joint_space_control.control.controller import Controller
+from joint_space_control.control.sampling import Sampling
 from joint_space_control.laws.gains import GainChoice, PDGains, inverse_dynamics_gains
 from joint_space_control.laws.inverse_dynamics import (
     LAWS,
@@ -45,10 +46,12 @@ def gains_from_choice(choice: GainChoice, n: int) -> PDGains:
 class InverseDynamicsController(Controller):
     """The model-based laws, with the reference feedforward cached per reference sample."""
 
-    def __init__(self, config: IDConfig, effort_limits: np.ndarray) -> None:
+    def __init__(
+        self, config: IDConfig, effort_limits: np.ndarray, sampling: Sampling | None = None
+    ) -> None:
         self._ff_key: tuple[RobotModel, bytes] | None = None
         self._ff: np.ndarray | None = None
-        super().__init__(config, effort_limits)
+        super().__init__(config, effort_limits, sampling)
 
     def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
         config = self.config

@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from joint_space_control.control.controller import Controller
+from joint_space_control.control.sampling import Sampling
 from joint_space_control.laws.gains import GainChoice, PDGains, pd_gains_from_second_order
 from joint_space_control.laws.pd_gravity import (
     GravityCompensation,
@@ -45,10 +46,12 @@ class PDGravityController(Controller):
 
     GAINS_NEED_CONFIGURATION = True
 
-    def __init__(self, config: PDConfig, effort_limits: np.ndarray) -> None:
+    def __init__(
+        self, config: PDConfig, effort_limits: np.ndarray, sampling: Sampling | None = None
+    ) -> None:
         self._g_des_key: tuple[RobotModel, bytes] | None = None
         self._g_des: np.ndarray | None = None
-        super().__init__(config, effort_limits)
+        super().__init__(config, effort_limits, sampling)
 
     def design_gains(self, config: PDConfig, q0: np.ndarray) -> PDConfig:
         inertia = np.diag(config.model.inertia(q0))

@@ -25,6 +25,15 @@ references it receives; once the plant is known to be lockstep, the newest waiti
 is answered at once. The resolved trigger is logged and shown in ``~/config`` and on
 /diagnostics (``trigger``; ``pending`` while unknown).
 
+Sampling (:mod:`~joint_space_control.control.sampling`, docs/parameters.md "Sampling and
+velocity"): ``rate`` is the control rate with either trigger; answering states, the core
+computes a torque at the states on the 1/rate grid and this node answers the states in
+between with the held command (``~/state`` is published once per control period). The q̇ the
+law uses is the measured one or an estimate from the positions (``velocity_source``); an
+empty velocity array is a well-formed state (a plant that does not measure velocity) unless
+the velocity must be measured. /diagnostics adds ``control_period`` (realised) and
+``velocity`` (in use).
+
 Stale states: with the timer, the node stops commanding when no joint state *arrived* for
 ``state_timeout`` seconds, measured on its own steady clock at receipt (not by comparing
 the states' stamps, simulation time, with the node clock), and restarts from the measured
@@ -53,6 +62,7 @@ from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
 from joint_space_control.control.controller import Controller, Step
+from joint_space_control.control.sampling import DEFAULT_CUTOFF, Sampling, VelocitySource
 from joint_space_control.laws.gains import DEFAULT_OMEGA_N, DEFAULT_ZETA, GainChoice, choose_gains
 from joint_space_control.laws.limits import beyond_bound
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
@@ -91,7 +101,8 @@ COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
     params.ParamSpec(
         "rate",
         1000.0,
-        "Control rate with trigger=timer",
+        "Control rate 1/T_s: the timer's with trigger=timer; with trigger=state a torque is "
+        "computed at the states on a 1/rate grid and held over the states in between",
         read_only=True,
         unit="Hz",
         minimum=0.0,
@@ -172,8 +183,40 @@ COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
     ),
     params.ParamSpec("model_gravity", True, "Controller model: false models no gravity (ĝ ≡ 0)"),
     params.REJECT_FACTOR,
+    params.ParamSpec(
+        "velocity_source",
+        VelocitySource.AUTO.value,
+        "q̇ used by the law and reported on ~/state: auto (measured when the state carries "
+        "a velocity, else filtered_difference) | measured (states without one are rejected) "
+        "| backward_difference | filtered_difference (from the positions' stamps)",
+        choices=tuple(source.value for source in VelocitySource),
+    ),
+    params.ParamSpec(
+        "velocity_cutoff",
+        DEFAULT_CUTOFF,
+        "Cutoff f_c of the filtered difference",
+        unit="Hz",
+        minimum=0.0,
+        exclusive=True,
+    ),
+    params.ParamSpec(
+        "reference_derivatives",
+        True,
+        "false: q̇_d = q̈_d = 0 whatever the reference (regulation form r = K_P q_d)",
+    ),
 )
 MODEL_PARAMETERS = ("model_mass_scale", "model_payload_mass", "model_friction", "model_gravity")
+
+
+def sampling(values: params.ParamValues, trigger: str, rate: float) -> Sampling:
+    """How the controller samples, from parameter values: the control period is 1/rate when
+    it answers states (trigger ``state``), else the timer's (the core computes every call)."""
+    return Sampling(
+        VelocitySource.parse(params.value(values, "velocity_source")),
+        params.value(values, "velocity_cutoff"),
+        params.value(values, "reference_derivatives"),
+        1.0 / rate if trigger == "state" else 0.0,
+    )
 
 
 def model_perturbation(values: params.ParamValues) -> ModelPerturbation:
@@ -218,7 +261,14 @@ class JointController(Node):
         self.trigger = "pending" if self.trigger_parameter == "auto" else self.trigger_parameter
         self._trigger_reason = ""
         # the controller itself (no ROS): configuration, state, step
-        self.core = self.CORE(self.build_config(values, self.model), self.effort_limits)
+        self.core = self.CORE(
+            self.build_config(values, self.model),
+            self.effort_limits,
+            sampling(values, self.trigger, rate),
+        )
+        self._velocity_said: VelocitySource | None = None  # the source last logged
+        self._last_step: Step | None = None  # the step of the control period in force
+        self._period_warned = False
         self._values = values  # the parameter values in force
         self._state_timeout = params.value(values, "state_timeout")
         self._reject_factor = params.value(values, "reject_factor")
@@ -227,7 +277,11 @@ class JointController(Node):
 
         self._order = JointOrder(self.joints)
         self._reader = JointStateReader(
-            self._order, (0, 1), lambda m: joint_state_arrays(m, self._order), allow_extra=True
+            self._order,
+            (0, 1),
+            lambda m: joint_state_arrays(m, self._order),
+            allow_extra=True,
+            optional=(1,),  # a plant that does not measure velocity
         )
         self._q: np.ndarray | None = None
         self._dq: np.ndarray | None = None
@@ -326,8 +380,10 @@ class JointController(Node):
             config = self.build_config(values, model)
             timeout = params.value(values, "state_timeout")
             reject_factor = params.value(values, "reject_factor")
+            new_sampling = sampling(values, self.trigger, self._rate)
             with self._lock:  # between two ticks
                 self.core.set_config(config)  # swapped whole; a tick reads it once
+                self.core.set_sampling(new_sampling)
                 self.model = model
                 self._state_timeout = timeout
                 self._reject_factor = reject_factor
@@ -347,8 +403,15 @@ class JointController(Node):
             "trigger": self.trigger,
             "trigger_parameter": self.trigger_parameter,
             "commanding": int(not self._silent),
+            "control_period": self._control_period(),
+            "velocity": (self.core.velocity_used or self.core.sampling.velocity).value,
             **self.counts,
         }
+
+    def _control_period(self) -> float:
+        """The control period T_s [s]: realised (answering states), else nominal."""
+        realised = self.core.control_period.realised
+        return 1.0 / self._rate if realised is None else realised
 
     def _alarm(self) -> str | None:
         """Why the controller is not doing its job right now (an ERROR on /diagnostics)."""
@@ -379,6 +442,7 @@ class JointController(Node):
                     "robot": self._robot_name,
                     "joints": list(self.joints),
                     "rate": self._rate,
+                    "control_period": 1.0 / self._rate,
                     "trigger": self.trigger,
                     "trigger_parameter": self.trigger_parameter,
                     "effort_limits": self.effort_limits,
@@ -425,6 +489,14 @@ class JointController(Node):
         except ValueError as err:
             self.counts["rejected.joint_states"] += 1
             self.get_logger().warning(f"rejected joint state: {err}", throttle_duration_sec=1.0)
+            return
+        if not dq.size and self.core.sampling.velocity is VelocitySource.MEASURED:
+            self.counts["rejected.joint_states"] += 1
+            self.get_logger().warning(
+                "rejected joint state: no velocity, and velocity_source is 'measured' (set "
+                "auto, backward_difference or filtered_difference to estimate it)",
+                throttle_duration_sec=1.0,
+            )
             return
         previous = self._state_ns
         if stamp < previous:
@@ -499,6 +571,8 @@ class JointController(Node):
         was = self.trigger
         self.trigger, self._trigger_reason = trigger, reason
         self._nominal_ns = round(1e9 / self._rate) if trigger == "timer" else -1
+        with self._lock:
+            self.core.set_sampling(sampling(self._values, trigger, self._rate))
         if self._timer is not None:
             if trigger == "timer":
                 self._timer.reset()
@@ -515,6 +589,30 @@ class JointController(Node):
             # the plant has been waiting for this answer
             self._answer(time.perf_counter_ns(), -1)
 
+    def _say_sampling(self) -> None:
+        """Log the velocity in use when it changes (INFO), and once that the states' period
+        does not divide the control period."""
+        used = self.core.velocity_used
+        if used is not self._velocity_said:
+            self._velocity_said = used
+            source = self.core.sampling.velocity
+            carry = "carry" if used is VelocitySource.MEASURED else "carry no"
+            how = f" (auto: the joint states {carry} velocity)" if source == "auto" else ""
+            cutoff = (
+                f", cutoff {self.core.sampling.cutoff:g} Hz"
+                if used is VelocitySource.FILTERED_DIFFERENCE
+                else ""
+            )
+            self.get_logger().info(f"velocity: {used.value}{cutoff}{how}")
+        period = self.core.control_period
+        if period.indivisible and not self._period_warned:
+            self._period_warned = True
+            self.get_logger().warning(
+                f"the joint states' period does not divide the control period 1/rate = "
+                f"{period.period * 1e3:g} ms: the realised period is the nearest multiple of "
+                f"it, {period.realised * 1e3:g} ms (on /diagnostics: control_period)"
+            )
+
     # -- the tick ----------------------------------------------------------------------
     def _tick(self, t: float) -> int:
         """Step the controller and publish the command and the state; returns when the
@@ -523,7 +621,19 @@ class JointController(Node):
         timeout acts)."""
         with self._lock:
             designing = self.core.gains_pending
-            step = self.core.step(t, self._q, self._dq)
+            held = self._last_step
+            try:
+                step = self.core.step(t, self._q, self._dq, self._state_ns * 1e-9)
+            except ValueError as err:  # velocity_source measured, this state has none
+                self.get_logger().error(f"no command: {err}", throttle_duration_sec=1.0)
+                return -1
+            if step is held:  # inside a control period: the held torque answers this state
+                self._command.set_stamp(self._state_ns)
+                self._command_bytes = self._command.to_bytes()
+                self._pub.publish(self._command_bytes)
+                self._answered_ns = self._state_ns
+                return time.time_ns()
+            self._last_step = step
             if step.tau is None:
                 self.counts["dropped.nonfinite_torques"] += 1
                 self.get_logger().error(
@@ -542,20 +652,14 @@ class JointController(Node):
                     throttle_duration_sec=1.0,
                 )
             listening = self._state_pub.get_subscription_count() > 0  # else: nothing to build
-            fill_images(
-                self._command,
-                self._state if listening else None,
-                self._state_ns,
-                self._q,
-                self._dq,
-                step,
-            )
+            fill_images(self._command, self._state if listening else None, self._state_ns, step)
             self._command_bytes = self._command.to_bytes()
             self._pub.publish(self._command_bytes)
             sent = time.time_ns()
             self._answered_ns = self._state_ns
             if listening:
                 self._state_pub.publish(self._state.to_bytes())
+        self._say_sampling()
         if designing:  # gains designed at the first measured configuration
             self.get_logger().info(f"gains {self._gains_text()} at q0={self.core.q0.tolist()}")
             self._publish_config(self._values)
@@ -566,18 +670,17 @@ def fill_images(
     command: JointStateImage,
     state: Float64ArrayImage | None,
     stamp_ns: int,
-    q: np.ndarray,
-    dq: np.ndarray,
     step: Step,
 ) -> None:
     """Write a step into the command image (effort, stamp of the state it answers) and, when
     given, the ``~/state`` image (README "Controller state": q_d, q̇_d, q̈_d, q, q̇, e, ė,
-    τ feedback/model/gravity, τ before and after clamping)."""
+    τ feedback/model/gravity, τ before and after clamping), with the reference and the
+    state (q, q̇ measured or estimated) the law used."""
     command.effort[:] = step.tau
     command.set_stamp(stamp_ns)
     if state is None:
         return
-    ref, split = step.ref, step.split
+    ref, split, q, dq = step.ref, step.split, step.q, step.dq
     data = state.data
     data[0] = stamp_ns * 1e-9
     np.concatenate(

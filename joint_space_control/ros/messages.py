@@ -131,10 +131,13 @@ def _field(values: Sequence[float], size: int, what: str) -> np.ndarray:
 
 
 def joint_state_arrays(msg: JointState, order: JointOrder) -> tuple[np.ndarray, np.ndarray]:
-    """(q, q̇) of the controlled joints; other joints in the message are ignored."""
+    """(q, q̇) of the controlled joints; other joints in the message are ignored. An empty
+    velocity array is well formed (velocity not measured): q̇ is then empty."""
     idx = order.index(msg.name, allow_extra=True)
     size = len(msg.name)
     q = _field(msg.position, size, "position")[idx]
+    if not len(msg.velocity):
+        return q, np.empty(0)
     dq = _field(msg.velocity, size, "velocity")[idx]
     return q, dq
 

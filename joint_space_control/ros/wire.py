@@ -224,7 +224,9 @@ class Float64ArrayImage:
 class JointStateReader:
     """Arrays of the controlled joints from raw JointState messages.
 
-    ``fields`` picks the arrays (0 position, 1 velocity, 2 effort); ``ordinary`` is the
+    ``fields`` picks the arrays (0 position, 1 velocity, 2 effort), of which ``optional``
+    may be empty in a message (then an empty array is returned for it; any other size is
+    the ordinary conversion's to judge); ``ordinary`` is the
     validating conversion of a deserialized message (it raises ``ValueError`` with the reason
     for an invalid one) and ``allow_extra`` whether names that are not controlled may appear.
     A message with the layout of the last valid one is read in place; its values are still
@@ -239,9 +241,12 @@ class JointStateReader:
         fields: tuple[int, ...],
         ordinary: Callable[[JointState], tuple[np.ndarray, ...]],
         allow_extra: bool,
+        optional: tuple[int, ...] = (),
     ) -> None:
         self._order = order
         self._fields = fields
+        self._optional = optional
+        self._present = fields  # the requested fields the learned layout carries
         self._ordinary = ordinary
         self._allow_extra = allow_extra
         self._image: JointStateImage | None = None
@@ -259,7 +264,10 @@ class JointStateReader:
             values = block[self._index]
             checked = values if self._checked is None else block[self._checked]
             if np.isfinite(checked).all():
-                return JointStateImage.stamp(raw), tuple(values.reshape(len(self._fields), -1))
+                arrays = tuple(values.reshape(len(self._present), -1))
+                if self._present is not self._fields:  # an optional array is absent
+                    arrays = self._with_absent(arrays)
+                return JointStateImage.stamp(raw), arrays
         try:
             msg = deserialize_message(raw, JointState)
         except RuntimeError as err:  # rmw's RMWError: truncated or garbled bytes
@@ -269,19 +277,22 @@ class JointStateReader:
         stamp = msg.header.stamp
         return stamp.sec * 1_000_000_000 + stamp.nanosec, arrays
 
+    def _with_absent(self, arrays: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+        present = iter(arrays)
+        return tuple(next(present) if f in self._present else np.empty(0) for f in self._fields)
+
     def _learn(self, msg: JointState) -> None:
         """Read the next messages of this layout in place."""
         image = JointStateImage.like(msg)
         joints = self._order.index(msg.name, allow_extra=self._allow_extra)
-        offsets = [image.offsets[f] for f in self._fields]
+        present = tuple(f for f in self._fields if image.sizes[f] or f not in self._optional)
+        self._present = self._fields if present == self._fields else present
+        offsets = [image.offsets[f] for f in present]
         self._base = min(offsets)
         firsts = [(offset - self._base) // 8 for offset in offsets]
         self._index = np.concatenate([first + joints for first in firsts])
         checked = np.concatenate(
-            [
-                first + np.arange(image.sizes[f])
-                for first, f in zip(firsts, self._fields, strict=True)
-            ]
+            [first + np.arange(image.sizes[f]) for first, f in zip(firsts, present, strict=True)]
         )
         self._checked = None if checked.size == self._index.size else checked
         self._span = int(checked.max()) + 1

@@ -132,10 +132,16 @@ def test_size_mismatch_rejected(field):
             joint_state_arrays(msg, order)
 
 
-def test_state_without_velocity_rejected():
+def test_state_without_velocity_is_well_formed_but_a_partial_one_is_not():
+    """An empty velocity array: a plant that does not measure velocity (q̇ empty); any
+    other size than the names' is still rejected."""
     msg = joint_state(JOINTS, [1.0, 2.0, 3.0])
     msg.velocity = []
-    with pytest.raises(ValueError, match="0 velocity values for 3 names"):
+    q, dq = joint_state_arrays(msg, JointOrder(JOINTS))
+    np.testing.assert_array_equal(q, [1.0, 2.0, 3.0])
+    assert dq.shape == (0,)
+    msg.velocity = [1.0]
+    with pytest.raises(ValueError, match="1 velocity values for 3 names"):
         joint_state_arrays(msg, JointOrder(JOINTS))
 
 

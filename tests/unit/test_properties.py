@@ -146,6 +146,8 @@ CONVERSIONS = {
     "state": (True, ("position", "velocity"), lambda m, o: joint_state_arrays(m, o)),
     "effort": (False, ("effort",), lambda m, o: (effort_arrays(m, o),)),
 }
+#: fields a conversion accepts empty (a state without measured velocity)
+OPTIONAL = {"state": ("velocity",), "effort": ()}
 
 
 @st.composite
@@ -185,7 +187,10 @@ def test_non_finite_values_and_wrong_sizes_are_rejected(kind, data):
         values[data.draw(st.integers(0, m - 1))] = data.draw(NON_FINITE)
         reason = f"non-finite {field}"
     else:
-        size = data.draw(st.integers(0, m + 3).filter(lambda s: s != m))
+        empty_ok = field in OPTIONAL[kind]  # an empty optional array is well formed
+        size = data.draw(
+            st.integers(0, m + 3).filter(lambda s: s != m and (s > 0 or not empty_ok))
+        )
         values = (values + data.draw(st.lists(FINITE, min_size=3, max_size=3)))[:size]
         reason = f"{size} {field} values for {m} names"
     setattr(msg, field, values)
@@ -373,7 +378,8 @@ def reader_for(kind: str, joints) -> JointStateReader:
     allow_extra, fields, convert = CONVERSIONS[kind]
     order = JointOrder(joints)
     field_ids = tuple(FIELDS.index(f) for f in fields)
-    return JointStateReader(order, field_ids, lambda m: convert(m, order), allow_extra)
+    optional = tuple(FIELDS.index(f) for f in OPTIONAL[kind])
+    return JointStateReader(order, field_ids, lambda m: convert(m, order), allow_extra, optional)
 
 
 def validating(kind: str, joints, raw: bytes):
@@ -421,7 +427,13 @@ def joint_state_streams(draw, kind: str):
 
     def sizes_for(m: int, valid: bool) -> list[int]:
         return [
-            (m if valid else draw(st.sampled_from([m, m, m - 1, m + 1])))
+            (
+                draw(st.sampled_from([m, 0]))
+                if valid and f in OPTIONAL[kind]
+                else m
+                if valid
+                else draw(st.sampled_from([m, m, m - 1, m + 1, 0]))
+            )
             if f in fields
             else draw(st.integers(0, m + 1))
             for f in FIELDS
@@ -666,7 +678,7 @@ def published(joints, limits, q, dq, ref: Sample, split: TorqueSplit):
         return None
     command = JointStateImage(joints, (0, 0, n))
     state = Float64ArrayImage(state_message(joints), 1 + len(STATE_FIELDS) * n)
-    fill_images(command, state, 1_500_000_000, q, dq, step)
+    fill_images(command, state, 1_500_000_000, step)
     return command.to_bytes(), state.to_bytes()
 
 

@@ -104,8 +104,26 @@ class TestReader:
     def reader(self):
         order = JointOrder(self.JOINTS)
         return JointStateReader(
-            order, (0, 1), lambda m: joint_state_arrays(m, order), allow_extra=True
+            order, (0, 1), lambda m: joint_state_arrays(m, order), allow_extra=True, optional=(1,)
         )
+
+    def test_states_without_velocity_are_read_on_either_path(self):
+        """An empty velocity array (velocity not measured) gives an empty q̇ on the ordinary
+        and the in-place path; a wrong size is still rejected; layouts alternate freely."""
+        reader = self.reader()
+        names = ["j3", "finger", "j1", "j2"]
+        for k in range(3):
+            msg = message(names, (4, 0, 4), stamp=(k, 1), seed=k)
+            stamp, (q, dq) = reader.read(serialize_message(msg))
+            np.testing.assert_array_equal(q, np.array(msg.position)[[2, 3, 0]])
+            assert dq.shape == (0,) and stamp == k * 1_000_000_000 + 1
+        with pytest.raises(ValueError, match="2 velocity values for 4 names"):
+            reader.read(serialize_message(message(names, (4, 2, 4))))
+        full = message(names, (4, 4, 4), seed=5)
+        _, (q, dq) = reader.read(serialize_message(full))
+        np.testing.assert_array_equal(dq, np.array(full.velocity)[[2, 3, 0]])
+        _, (q, dq) = reader.read(serialize_message(message(names, (4, 0, 0))))
+        assert dq.shape == (0,)
 
     def test_fast_and_ordinary_paths_agree_with_extra_and_permuted_names(self):
         names = ["j3", "finger", "j1", "j2"]
