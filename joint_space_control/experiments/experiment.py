@@ -19,6 +19,7 @@ from joint_space_control.experiments import figures
 from joint_space_control.experiments.checks import Outcome, RunView, evaluate
 from joint_space_control.experiments.runner import RunResult, run_scenario
 from joint_space_control.experiments.scenario import Scenario
+from joint_space_control.json_values import jsonable
 
 
 @dataclass
@@ -100,7 +101,7 @@ def _result_json(result: ExperimentResult, short: bool) -> dict:
             {"label": r.label, "dir": str(r.out), "error": r.error, "events": r.events}
             for r in result.runs
         ],
-        "checks": [o.__dict__ for o in result.outcomes],
+        "checks": [jsonable(o.__dict__) for o in result.outcomes],  # NaN, ±inf: null
     }
 
 

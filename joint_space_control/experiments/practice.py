@@ -281,12 +281,14 @@ def _period(r: RunView) -> tuple[float, float]:
 
 
 def _diverges(y: np.ndarray) -> bool:
-    """The normalized step response y (→ 1) grows instead of settling: its largest error in
-    the last quarter is above the one in the second quarter (or it is not finite)."""
+    """The normalized step response y (→ 1) does not settle: its largest error in the last
+    quarter is above the one in the second quarter (it grows), or above half the step (a
+    growing oscillation that the torque limits have bounded), or it is not finite."""
     if not np.all(np.isfinite(y)):
         return True
     k = len(y) // 4
-    return bool(np.max(np.abs(y[3 * k :] - 1.0)) > np.max(np.abs(y[k : 2 * k] - 1.0)))
+    late = np.max(np.abs(y[3 * k :] - 1.0))
+    return bool(late > np.max(np.abs(y[k : 2 * k] - 1.0)) or late > 0.5)
 
 
 def sampled_loop(runs: list[RunView], overshoot_pp: float = 0.5) -> list[Outcome]:
@@ -311,6 +313,8 @@ def sampled_loop(runs: list[RunView], overshoot_pp: float = 0.5) -> list[Outcome
             max(0.0, 100.0 * (float(np.max(y)) - 1.0)) if np.all(np.isfinite(y)) else np.inf
         )
         diverged = _diverges(y)
+        clamped = int(np.sum(np.any(r.state.rows["tau"] != r.state.rows["tau_unclamped"], axis=1)))
+        saturated = f" ({clamped} periods saturated: outside the linear theory)" if clamped else ""
         p = sampled_step_prediction(kp, kd, period, physics_dt, duration=float(t[-1] - t[0]))
         limit = sampled_stability_limit(kp, kd, physics_dt)
         limits.append(limit)
@@ -324,7 +328,7 @@ def sampled_loop(runs: list[RunView], overshoot_pp: float = 0.5) -> list[Outcome
                 f"{fmt(measured_os)} % vs {fmt(predicted)} % predicted for the sampled loop "
                 f"(between samples the plant peaks at {fmt(p['overshoot_percent'])} %; "
                 f"spectral radius {p['spectral_radius']:.3f}; continuous theory "
-                f"{fmt(continuous)} %)"
+                f"{fmt(continuous)} %)" + saturated
             )
         else:
             ok = diverged
@@ -332,6 +336,7 @@ def sampled_loop(runs: list[RunView], overshoot_pp: float = 0.5) -> list[Outcome
                 f"{r.label}: T_s = {1e3 * period:.3g} ms beyond the predicted limit "
                 f"{1e3 * limit:.4g} ms (spectral radius {p['spectral_radius']:.3f}): "
                 + ("diverges, as predicted" if diverged else "does NOT diverge")
+                + saturated
             )
         out.append(
             Outcome(
@@ -345,6 +350,7 @@ def sampled_loop(runs: list[RunView], overshoot_pp: float = 0.5) -> list[Outcome
                     "overshoot_between_samples": p["overshoot_percent"],
                     "spectral_radius": p["spectral_radius"],
                     "diverged": diverged,
+                    "saturated_periods": clamped,
                     "stable_predicted": bool(p["stable"]),
                     "kp": kp,
                     "kd": kd,
