@@ -216,11 +216,52 @@ def bode(result: Any, path: Path) -> None:
     plt.close(fig)
 
 
+def chatter(result: Any, path: Path) -> None:
+    """Per run (the ``measurement_noise`` check's numbers): the torque chatter measured and
+    predicted, and the true RMS error, per joint, on two panels."""
+    rows = _numbers(result, "measurement_noise")
+    if not rows:
+        return
+    plt = _pyplot()
+    labels = [o.text.split(" ", 1)[0] for o in result.outcomes if o.check == "measurement_noise"]
+    n = len(rows[0]["chatter"])
+    x = np.arange(len(rows))
+    width = 0.8 / (2 * n)
+    fig, (ax_c, ax_e) = plt.subplots(2, 1, figsize=(9, 6.4), sharex=True)
+    for j in range(n):
+        measured = [r["chatter"][j] for r in rows]
+        predicted = [r["chatter_predicted"][j] for r in rows]
+        ax_c.bar(x + (2 * j - n + 0.5) * width, measured, width, label=f"joint {j + 1} measured")
+        ax_c.bar(
+            x + (2 * j - n + 1.5) * width,
+            predicted,
+            width,
+            alpha=0.45,
+            label=f"joint {j + 1} predicted",
+        )
+        errors = [1e3 * (r["true_rms_error"][j] or np.nan) for r in rows]
+        ax_e.bar(x + (j - (n - 1) / 2) * 0.8 / n, errors, 0.8 / n, label=f"joint {j + 1}")
+    ax_c.set_yscale("log")
+    ax_c.set_ylabel("torque chatter RMS [N·m]")
+    ax_c.legend(fontsize=7, ncol=2)
+    ax_e.set_yscale("log")
+    ax_e.set_ylabel("true RMS error [mrad]")
+    ax_e.legend(fontsize=7)
+    ax_e.set_xticks(x, labels, rotation=30, ha="right", fontsize=8)
+    for ax in (ax_c, ax_e):
+        ax.grid(True, axis="y", alpha=0.3)
+    fig.suptitle(f"{result.scenario.title} ({result.scenario.robot})", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 FIGURES: dict[str, Callable[[Any, Path], None]] = {
     "overlay": overlay,
     "targets": targets,
     "sampling": sampling,
     "bode": bode,
+    "chatter": chatter,
 }
 
 

@@ -454,10 +454,144 @@ def frequency_response(
     return out
 
 
+def _gravity_jacobian(m: Any, q: np.ndarray) -> np.ndarray:
+    """∂g/∂q at q [N·m/rad] (Pinocchio's analytic derivative)."""
+    import pinocchio as pin
+
+    return np.asarray(
+        pin.computeGeneralizedGravityDerivatives(m.model, m.data, m.configuration(q)),
+        dtype=float,
+    )
+
+
+def _estimator(source: str, n: int, cutoff: float) -> Any:
+    from joint_space_control.laws.velocity import BackwardDifference, FilteredDifference
+
+    if source == "backward_difference":
+        return BackwardDifference(n)
+    if source == "filtered_difference":
+        return FilteredDifference(n, cutoff)
+    return None
+
+
+def predicted_chatter(
+    r: RunView, q: np.ndarray, period: float, samples: int = 20000, seed: int = 12345
+) -> np.ndarray:
+    """The torque chatter RMS (sample-to-sample change of τ, per joint) that the plant's
+    measurement noise alone causes at rest at q, by simulating the run's estimator and the
+    law's noise gains on an independent noise sequence of the same statistics:
+
+        δτ = M (−K_P n_q − K_D v̂) + (∂g/∂q) n_q
+
+    with n_q the position noise (σ_q, and an encoder count Δ as uniform noise of variance
+    Δ²/12 where σ_q ≥ Δ dithers it), v̂ the velocity the law uses (the measured one with its
+    noise σ_v, or the estimator's output on n_q), M = I for PD + g and B̂(q) for inverse
+    dynamics (whose K_P, K_D are accelerations). The arm's own response to the noisy torque
+    is neglected (it filters the noise far below the sampling rate)."""
+    names = joints(r.controller)
+    n = len(names)
+    m = model(r.robot)
+    rng = np.random.default_rng(seed)
+    sigma_q = _per_joint(r.plant.get("position_noise"), n)
+    counts = _per_joint(r.plant.get("encoder_counts"), n)
+    quantum = np.where(counts > 0, 2 * np.pi / np.where(counts > 0, counts, 1), 0.0)
+    noise_q = rng.normal(0.0, 1.0, (samples, n)) * sigma_q
+    noise_q += rng.uniform(-0.5, 0.5, (samples, n)) * quantum
+    source = str(r.parameters.get("velocity_source", "auto"))
+    if source == "auto":  # the measured velocity, or the filtered difference without one
+        measured = r.plant.get("measure_velocity", True)
+        source = "measured" if measured else "filtered_difference"
+    cutoff = float(r.parameters.get("velocity_cutoff", 50.0))
+    estimator = _estimator(source, n, cutoff)
+    if estimator is None:  # measured velocities
+        v = rng.normal(0.0, 1.0, (samples, n)) * _per_joint(r.plant.get("velocity_noise"), n)
+    else:
+        v = np.array([estimator.update(k * period, noise_q[k]) for k in range(samples)])
+    kp = np.asarray(r.controller["config"]["kp"], dtype=float)
+    kd = np.asarray(r.controller["config"]["kd"], dtype=float)
+    feedback = -kp * noise_q - kd * v
+    inverse = r.executable == "inverse_dynamics_controller"
+    tau = (feedback @ m.inertia(q).T if inverse else feedback) + noise_q @ _gravity_jacobian(
+        m, q
+    ).T
+    return np.sqrt(np.mean(np.diff(tau[100:], axis=0) ** 2, axis=0))
+
+
+def measurement_noise(runs: list[RunView], rtol: float = 0.15) -> list[Outcome]:
+    """Encoder noise and quantization at rest: the measured torque chatter (RMS of τ's
+    sample-to-sample change over the second half of the run) against
+    :func:`predicted_chatter` for the run's velocity source and law (within ``rtol``; no
+    claim where the measurement has no noise to dither the quantization: a count that does
+    not change adds no chatter), and the RMS of the true error (the plant's true state) next
+    to it."""
+    from joint_space_control.analysis.metrics import torque_chatter_rms
+
+    out = []
+    for r in runs:
+        if r.state is None:
+            raise ValueError(f"{r.label}: no recorded controller state")
+        names = joints(r.controller)
+        half = len(r.state) // 2
+        t, tau = r.state.stamp[half:], r.state.rows["tau"][half:]
+        chatter = torque_chatter_rms(t, tau)
+        period = float(np.median(np.diff(t)))
+        q = final_true(r)
+        noisy = bool(
+            np.any(_per_joint(r.plant.get("position_noise"), len(names)) > 0)
+            or np.any(_per_joint(r.plant.get("velocity_noise"), len(names)) > 0)
+        )
+        predicted = predicted_chatter(r, q, period) if noisy else np.full(len(names), np.nan)
+        true_rms = np.full(len(names), np.nan)
+        if r.truth is not None:
+            cols = [r.truth.names.index(j) for j in names]
+            keep = r.truth.stamp >= t[0]
+            target = np.asarray(r.state.rows["q_d"][-1], dtype=float)
+            err = r.truth.position[keep][:, cols] - target
+            true_rms = np.sqrt(np.mean(err**2, axis=0))
+        ratio = chatter / np.where(predicted > 0, predicted, np.nan)
+        clamped = np.any(r.state.rows["tau"][half:] != r.state.rows["tau_unclamped"][half:], 1)
+        saturated = float(np.mean(clamped))
+        passed = bool(np.all(np.abs(ratio - 1.0) <= rtol)) if noisy and not saturated else None
+        why = ""
+        if saturated:
+            why = f" (saturated {100 * saturated:.2g} % of the time: outside the prediction)"
+        if not noisy:
+            counts = _per_joint(r.plant.get("encoder_counts"), len(names))
+            kd = np.asarray(r.controller["config"]["kd"], dtype=float)
+            jump = kd * 2 * np.pi / np.where(counts > 0, counts, np.inf) / period
+            why = (
+                f" (quantization alone, no noise to dither it: no prediction; one count is a "
+                f"K_D Δ/T_s = {_arr(jump, 0)} N·m step with a backward difference)" + why
+            )
+        source = r.parameters.get("velocity_source", "auto")
+        law = "inverse dynamics" if r.executable.startswith("inverse") else "PD + g"
+        out.append(
+            Outcome(
+                "measurement_noise",
+                passed,
+                f"{r.label} ({law}, {source}): torque chatter {_arr(chatter, 3)} N·m vs "
+                f"{_arr(predicted, 3)} N·m predicted; true RMS error "
+                f"{_arr(1e3 * true_rms, 3)} mrad" + why,
+                {
+                    "source": source,
+                    "executable": r.executable,
+                    "chatter": chatter.tolist(),
+                    "chatter_predicted": predicted.tolist(),
+                    "true_rms_error": true_rms.tolist(),
+                    "saturated_fraction": saturated,
+                    "position_noise": _per_joint(r.plant.get("position_noise"), len(names))[0],
+                    "encoder_counts": _per_joint(r.plant.get("encoder_counts"), len(names))[0],
+                },
+            )
+        )
+    return out
+
+
 CHECKS: dict[str, Callable[..., list[Outcome]]] = {
     "disturbance": disturbance,
     "coulomb_band": coulomb_band,
     "repeatability": repeatability,
     "sampled_loop": sampled_loop,
     "frequency_response": frequency_response,
+    "measurement_noise": measurement_noise,
 }

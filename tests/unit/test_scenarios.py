@@ -35,8 +35,9 @@ def test_every_installed_scenario_loads_and_answers_a_question():
         for label, run in s.runs(short=True):
             assert run.variants is None and label
     # THEORY.md §5: experiments 1–8; §4, the practical specifications: 9 disturbance,
-    # 10 sampling period, 11 bandwidth, 13 Coulomb friction, 14 accuracy and repeatability
-    assert questions == set(range(1, 9)) | {9, 10, 11, 13, 14}
+    # 10 sampling period, 11 bandwidth, 12 measurement noise, 13 Coulomb friction, 14
+    # accuracy and repeatability
+    assert questions == set(range(1, 15))
     robots = {load(n).robot for n in scenarios}
     assert robots == {"planar_2dof", "iiwa"}
 
