@@ -22,6 +22,8 @@ variants:                                  # optional: one run per value (a swee
   name: omega                              # label of the swept quantity
   key: reference.omega                     # what each value replaces
   values: [0.5, 1.0, 2.0]
+  short: [omega=0.5, omega=2]              # optional: the runs of the short form (default:
+                                           # the first and the last)
   # or several settings per run:
   # runs: [{label: id, set: {parameters.law: inverse_dynamics, parameters.omega_n: 10}}]
   # (``controller: inverse_dynamics_controller`` in ``set`` switches the executable)
@@ -85,7 +87,8 @@ class Variants:
     name: str
     runs: list[tuple[str, dict[str, Any]]]
     short: list[int]
-    """Indices of the runs kept in the short (CI) form: the first and the last."""
+    """Indices of the runs kept in the short (CI) form: the first and the last, or the ones
+    ``variants.short`` names (a check that needs several runs of a group, say)."""
 
 
 @dataclass(frozen=True)
@@ -265,7 +268,13 @@ def parse(data: Any, name: str, path: Path) -> Scenario:
         labels = [label for label, _ in runs]
         if len(set(labels)) != len(labels):
             raise ValueError(f"variant labels must differ: {labels}")
-        variants = Variants(name_, runs, sorted({0, len(runs) - 1}))
+        short_runs = sorted({0, len(runs) - 1})
+        if v.get("short") is not None:  # the runs the short form keeps, by label
+            keep = v["short"]
+            if not isinstance(keep, list) or not keep or any(k not in labels for k in keep):
+                raise ValueError(f"'variants.short' must list run labels among {labels}")
+            short_runs = sorted(labels.index(k) for k in set(keep))
+        variants = Variants(name_, runs, short_runs)
     scenario = Scenario(
         name=name,
         path=path,

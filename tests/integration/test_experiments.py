@@ -56,11 +56,20 @@ def test_inverse_dynamics_scenario_end_to_end_agrees_with_the_theory(tmp_path):
     assert (out / "bag" / "metadata.yaml").is_file()
 
 
-def test_every_scenario_runs_in_its_short_form(tmp_path):
+def _chunks(parts: int = 3) -> list[list[str]]:
+    """The installed scenarios in ``parts`` chunks of about equal size (one jsc call each:
+    the chunks spread over the test workers and stay within the per-test timeout)."""
+    names = list(available())
+    return [names[k::parts] for k in range(parts)]
+
+
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize("names", _chunks(), ids=lambda names: f"{names[0]}..")
+def test_every_scenario_runs_in_its_short_form(tmp_path, names):
     docs = tmp_path / "docs"
-    result = jsc("--all", "--short", "--out", str(tmp_path), "--report", str(docs), timeout=1200)
+    result = jsc(*names, "--short", "--out", str(tmp_path), "--report", str(docs), timeout=900)
     assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-4000:]
-    for name in available():
+    for name in names:
         verdict = json.loads((tmp_path / name / "result.json").read_text())
         assert verdict["errors"] == [], (name, verdict["errors"])
         for run in verdict["runs"]:
@@ -68,7 +77,7 @@ def test_every_scenario_runs_in_its_short_form(tmp_path):
             assert (report / "report.md").is_file() and (report / "metrics.json").is_file()
         assert verdict["checks"], f"{name}: no check evaluated"
     page = (docs / "results.md").read_text()
-    assert page.count("### ") == len(available())
+    assert page.count("### ") == len(names)
     for link in [line for line in page.splitlines() if line.startswith("![")]:
         target = link[link.index("](") + 2 : -1]
         assert (docs / target).is_file(), target

@@ -203,3 +203,19 @@ def test_gravity_bound_is_the_largest_gravity_jacobian_norm():
     alpha = checks.gravity_bound("planar_2dof", samples=2000)
     assert alpha <= exact * (1 + 1e-9)  # sampled: never above the supremum
     assert alpha > 0.995 * exact
+
+
+def test_the_short_form_keeps_the_runs_variants_short_names():
+    s = load("repeatability")
+    assert [label for label, _ in s.runs(short=True)] == [
+        "friction-1",
+        "friction-2",
+        "noise-1",
+        "noise-2",
+    ]
+    with pytest.raises(ValueError, match="'variants.short' must list run labels"):
+        parse(
+            {**MINIMAL, "variants": {"key": "parameters.kp", "values": [1, 2], "short": ["x"]}},
+            "bad",
+            Path("bad.yaml"),
+        )
