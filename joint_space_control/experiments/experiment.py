@@ -152,6 +152,8 @@ def _relative(path: Path, base: Path) -> str:
 
 def _key_plots(result: ExperimentResult) -> list[Path]:
     ok = [r for r in result.runs if r.error is None]
+    if result.figures:  # the scenario's own figures say what its runs show
+        return list(result.figures)
     sweep = result.out / "sweep.png"
     if sweep.is_file():
         standard = [sweep] + ([ok[-1].out / "report" / "positions.png"] if ok else [])
@@ -161,7 +163,8 @@ def _key_plots(result: ExperimentResult) -> list[Path]:
 
 
 def _sweep_plot(result: ExperimentResult, path: Path) -> None:
-    """The swept runs side by side: tracking RMS, peak torque and settling time per run."""
+    """The swept runs side by side: tracking RMS, peak torque and settling time per run
+    (a quantity no run defines, e.g. settling without a step, gets no panel)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -180,13 +183,19 @@ def _sweep_plot(result: ExperimentResult, path: Path) -> None:
         steps = c["steps"]
         values = [j.get("settling_time_2") for j in (steps[0]["joints"].values() if steps else [])]
         settle.append(max(_finite(values), default=math.nan))
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
-    for ax, values, title in zip(
-        axes,
-        (rms, peak, settle),
-        ("RMS tracking error [rad]", "peak |τ| [N·m]", "2 % settling time [s]"),
-        strict=True,
-    ):
+    panels = [
+        (values, title)
+        for values, title in (
+            (rms, "RMS tracking error [rad]"),
+            (peak, "peak |τ| [N·m]"),
+            (settle, "2 % settling time [s]"),
+        )
+        if _finite(values)  # a panel with no defined value is not drawn
+    ]
+    if not panels:
+        return
+    fig, axes = plt.subplots(1, len(panels), figsize=(4 * len(panels), 3.6), squeeze=False)
+    for ax, (values, title) in zip(axes[0], panels, strict=True):
         ax.bar(range(len(values)), values, color="tab:blue")
         ax.set_xticks(range(len(values)), labels, rotation=30, ha="right", fontsize=8)
         ax.set_title(title, fontsize=10)
