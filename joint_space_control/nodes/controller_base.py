@@ -290,7 +290,10 @@ class JointController(Node):
         self._state_arrival = 0.0  # when it arrived (time.monotonic) [s]
         self._deferred: list[JointTrajectory] = []  # references received while pending
         self._answered_ns = -1
-        self._command = JointStateImage(self.joints, (0, 0, self.n))
+        # header.frame_id names the commander: the plant accepts one at a time (docs/safety.md)
+        self._command = JointStateImage(
+            self.joints, (0, 0, self.n), frame_id=self.get_fully_qualified_name()
+        )
         self._command_bytes = b""
         self._state = Float64ArrayImage(state_message(self.joints), 1 + len(STATE_FIELDS) * self.n)
         self._silent = False

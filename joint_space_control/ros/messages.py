@@ -28,6 +28,15 @@ CONTROL_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+#: The plant's command subscriptions: every command received is judged (a foreign or broken
+#: one is counted, docs/safety.md), so none may be overwritten in the queue by the next one
+#: before the plant takes it; the newest valid command is the one held.
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=16,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 #: Publishers of the control topics (joint states, /clock, commands, controller state):
 #: reliable like :data:`CONTROL_QOS`, but the writer keeps its last 1000 samples. The loop
 #: itself only ever wants the newest; an observer that falls behind a loop running faster
