@@ -21,8 +21,13 @@ Safe fallback: in realtime mode, when no valid command arrived for ``command_tim
 with zero target, limited to the effort limits): the arm stops and holds. In lockstep mode
 time does not advance without a command, so there is nothing to time out.
 
+One commander at a time (:mod:`sim_bridge.ownership`): the commands' ``header.frame_id``
+names their sender; valid commands from another one than the owner are refused and counted
+(``rejected.foreign_commands``) until the owner is silent for ``command_timeout``, leaves the
+graph, or ``~/release`` is called. Every command received is judged (a drained queue of 16).
+
 Services: ``~/reset`` (initial configuration, at rest; time keeps running forward),
-``~/pause`` and ``~/resume`` (std_srvs/Trigger).
+``~/pause``, ``~/resume`` and ``~/release`` (std_srvs/Trigger).
 
 Imperfections, all off by default (docs/plant.md): the published positions and velocities
 can be quantized and noisy (:mod:`sim_bridge.sensors`; one measurement per simulation
@@ -66,8 +71,8 @@ from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
 from joint_space_control.ros.loop_statistics import LoopStatistics
 from joint_space_control.ros.messages import (
+    COMMAND_QOS,
     CONTROL_PUBLISHER_QOS,
-    CONTROL_QOS,
     JointOrder,
     effort_arrays,
     float_array,
@@ -75,13 +80,21 @@ from joint_space_control.ros.messages import (
 from joint_space_control.ros.node_main import run_node
 from joint_space_control.ros.wire import JointStateImage, JointStateReader
 from sim_bridge import pacing
+from sim_bridge.ownership import ARRAY_COMMANDER, CommandOwnership
 from sim_bridge.plant import Plant, coulomb_bounds
 from sim_bridge.sensors import Encoder
 from sim_bridge.wrench import PROFILES, WrenchSchedule
 
 MODES = ("realtime", "lockstep")
 #: The safety counters of the plant (on /diagnostics; docs/safety.md).
-COUNTERS = ("rejected.commands", "rejected.wrenches", "brake.engaged")
+COUNTERS = (
+    "rejected.commands",
+    "rejected.foreign_commands",
+    "rejected.wrenches",
+    "brake.engaged",
+)
+#: How often [s] the graph is checked for an owner that left.
+OWNER_CHECK = 0.25
 #: Recent states whose publication time is kept for the command latency (realtime).
 SENT_HISTORY = 64
 #: Realtime: a tick this far behind its schedule [ns] resets the schedule (machine stalled).
@@ -349,10 +362,10 @@ class SimBridge(Node):
         self._clock_pub = self.create_publisher(Clock, "/clock", CONTROL_PUBLISHER_QOS)
         self.control_path = ControlPath(self)
         self.control_path.subscription(
-            JointState, "effort_command", self._on_effort, CONTROL_QOS, raw=True
+            JointState, "effort_command", self._on_effort, COMMAND_QOS, raw=True, drain=True
         )
         self.control_path.subscription(
-            Float64MultiArray, "~/commands", self._on_array, CONTROL_QOS
+            Float64MultiArray, "~/commands", self._on_array, COMMAND_QOS, drain=True
         )
         self._diagnostics = LoopDiagnostics(
             self, self.loop_stats, spec.name, self._diagnostic_values, self._alarm
@@ -361,6 +374,11 @@ class SimBridge(Node):
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(Trigger, "~/pause", self._on_pause)
         self.create_service(Trigger, "~/resume", self._on_resume)
+        self.create_service(Trigger, "~/release", self._on_release)
+        self._ownership = CommandOwnership()
+        self.create_timer(
+            OWNER_CHECK, self._check_owner, clock=RosClock(clock_type=ClockType.STEADY_TIME)
+        )
 
         if self.mode == "lockstep":
             self.create_timer(republish / 4, lambda: self._republish(republish))
@@ -479,6 +497,7 @@ class SimBridge(Node):
             "sim_time_s": self._t_ns * 1e-9,
             "real_time_factor": summary["rate_hz"] * self._tick_sim_ns * 1e-9,
             "braking": int(self.mode == "realtime" and self._braking),
+            "owner": self._ownership.owner or "",
             **self.counts,
         }
 
@@ -592,7 +611,7 @@ class SimBridge(Node):
             return
         if self._absurd(tau):
             return
-        self._command(tau, stamp, received)
+        self._command(tau, stamp, received, self._effort_reader.frame_id)
 
     def _on_array(self, msg: Float64MultiArray, info: Any) -> None:
         received = time.perf_counter_ns()
@@ -604,7 +623,7 @@ class SimBridge(Node):
             return
         if self._absurd(tau):
             return
-        self._command(tau, None, received)
+        self._command(tau, None, received, ARRAY_COMMANDER)
 
     def _absurd(self, tau: np.ndarray) -> bool:
         """A command beyond ``reject_factor`` × the effort limits: rejected and counted (its
@@ -619,8 +638,14 @@ class SimBridge(Node):
         )
         return True
 
-    def _command(self, tau: np.ndarray, stamp_ns: int | None, received: int) -> None:
+    def _command(self, tau: np.ndarray, stamp_ns: int | None, received: int, sender: str) -> None:
         with self._lock:
+            # one commander at a time: its silence is measured on simulation time in
+            # realtime (as the brakes), on wall time in lockstep (time waits for commands)
+            now = self._t_ns * 1e-9 if self.mode == "realtime" else time.monotonic()
+            if not self._ownership.admit(sender, now, self.command_timeout):
+                self._foreign(sender)
+                return
             if self.mode == "realtime":
                 self._tau, self._tau_t_ns = tau, self._t_ns
                 if stamp_ns is not None:
@@ -637,6 +662,40 @@ class SimBridge(Node):
             self._t_ns += self.period_ns
             self._publish_state()
         self.loop_stats.tick(received, time.perf_counter_ns(), latency, -1, self.period_ns)
+
+    def _foreign(self, sender: str) -> None:
+        """A valid command from another commander than the owner: refused (lock held)."""
+        self.counts["rejected.foreign_commands"] += 1
+        owner = self._ownership.owner
+        self.get_logger().warning(
+            f"rejected a command from {sender or '(unnamed)'!r}: {owner or '(unnamed)'!r} "
+            "commands this plant (it is freed when its commands stop for command_timeout, "
+            "when it leaves, or by ~/release)",
+            throttle_duration_sec=1.0,
+        )
+
+    def _check_owner(self) -> None:
+        """Free the plant when its owner left the graph (executor thread)."""
+        publishers = self.get_publishers_info_by_topic(self.resolve_topic_name("effort_command"))
+        present = {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in publishers}
+        if publishers:
+            present.add("")  # an unnamed commander may be any of them
+        if self.get_publishers_info_by_topic(self.resolve_topic_name("~/commands")):
+            present.add(ARRAY_COMMANDER)
+        with self._lock:
+            left = self._ownership.left(present)
+        if left is not None:
+            self.get_logger().info(f"{left or '(unnamed)'!r} left: the plant is free")
+
+    def _on_release(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        with self._lock:
+            owner = self._ownership.release()
+        response.success = True
+        response.message = (
+            f"released {owner or '(unnamed)'!r}" if owner is not None else "nobody owned it"
+        )
+        self.get_logger().info(f"~/release: {response.message}")
+        return response
 
     def _on_wrench(self, msg: WrenchStamped) -> None:
         """Hold the wrench on the link ``header.frame_id`` names ('': the last controlled

@@ -49,8 +49,10 @@ published again with the gains in force.
 
 from __future__ import annotations
 
+import gc
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -79,11 +81,13 @@ from joint_space_control.ros.messages import (
     JointOrder,
     config_message,
     joint_state_arrays,
+    prepare_reference_reader,
     state_message,
-    trajectory_from_msg,
+    trajectory_from_bytes,
 )
 from joint_space_control.ros.plant_mode import PlantModeWatcher
 from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
+from joint_space_control.trajectories.reference import Trajectory
 
 TRIGGERS = ("auto", "timer", "state")
 #: The safety counters of a controller (on /diagnostics; docs/safety.md).
@@ -288,9 +292,16 @@ class JointController(Node):
         self._state_ns = -1
         self._state_sent_ns = -1  # when the newest state was published (system clock)
         self._state_arrival = 0.0  # when it arrived (time.monotonic) [s]
-        self._deferred: list[JointTrajectory] = []  # references received while pending
+        self._deferred: list[bytes] = []  # references received while pending
+        # references are built off the control path with trigger=timer (see _on_reference)
+        self._reference_worker = ThreadPoolExecutor(1, thread_name_prefix="references")
+        prepare_reference_reader()
+        self._generation = 0  # incremented by a restart
         self._answered_ns = -1
-        self._command = JointStateImage(self.joints, (0, 0, self.n))
+        # header.frame_id names the commander: the plant accepts one at a time (docs/safety.md)
+        self._command = JointStateImage(
+            self.joints, (0, 0, self.n), frame_id=self.get_fully_qualified_name()
+        )
         self._command_bytes = b""
         self._state = Float64ArrayImage(state_message(self.joints), 1 + len(STATE_FIELDS) * self.n)
         self._silent = False
@@ -310,7 +321,7 @@ class JointController(Node):
         # The reference subscription comes first, so that a reference and a joint state
         # that are both waiting are handled in that order (deterministic lockstep start).
         self.control_path.subscription(
-            JointTrajectory, "reference", self._on_reference, REFERENCE_QOS
+            JointTrajectory, "reference", self._on_reference, REFERENCE_QOS, raw=True
         )
         self.control_path.subscription(
             JointState, "joint_states", self._on_joint_state, CONTROL_QOS, raw=True
@@ -465,22 +476,62 @@ class JointController(Node):
             return max(self._state_ns, 0) * 1e-9
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _on_reference(self, msg: JointTrajectory, info: Any = None) -> None:
+    def _on_reference(self, raw: bytes, info: Any = None) -> None:
+        """A reference's bytes (control path). With ``trigger: state`` (lockstep: time waits
+        for the answer) it is validated and splined here, before the next state is
+        answered, so a run does not depend on timing; otherwise the reference worker does
+        it and the trajectory is swapped in between two ticks once ready: the tick never
+        waits for it (a 100,000-point trajectory takes about a second to read)."""
         if self.trigger == "pending":  # its time base (state stamps or clock) is not known
-            self._deferred.append(msg)
+            self._deferred.append(raw)
+            return
+        now = self._now()  # a start time of 0 means the moment it arrived
+        if self.trigger == "state":
+            self._take_reference(self._build_reference(raw, now), self._generation)
             return
         try:
-            traj = trajectory_from_msg(
-                msg, self._order, self._now(), 0, self.model.position_limits
-            )
+            self._reference_worker.submit(self._prepare_reference, raw, now, self._generation)
+        except RuntimeError:  # the worker is shut down: the node is closing
+            pass
+
+    def _build_reference(self, raw: bytes, now: float) -> Trajectory | str:
+        """The validated trajectory, or why it is rejected (any thread)."""
+        try:
+            return trajectory_from_bytes(raw, self._order, now, 0, self.model.position_limits)
         except ValueError as err:
-            self.counts["rejected.references"] += 1
-            self.get_logger().warning(f"rejected reference: {err}", throttle_duration_sec=1.0)
+            return str(err)
+
+    def _prepare_reference(self, raw: bytes, now: float, generation: int) -> None:
+        """The reference worker: build, then hand over to the control path. The cyclic
+        garbage collector is off meanwhile: a full collection among the 100,000 objects of
+        a large reference would hold the interpreter for ~100 ms (reference counting frees
+        them; nothing they make is cyclic)."""
+        gc.disable()
+        try:
+            result = self._build_reference(raw, now)
+            if not isinstance(result, str):  # its spline solved here, not at activation
+                result = result.prepared()
+        finally:
+            gc.enable()
+        self.control_path.post(lambda: self._take_reference(result, generation))
+
+    def _take_reference(self, result: Trajectory | str, generation: int) -> None:
+        """Schedule a built trajectory, or count and say why it was rejected (control
+        path); one built before a restart is dropped (the restart forgot the references)."""
+        if generation != self._generation:
             return
-        self.core.add_trajectory(traj)
+        if isinstance(result, str):
+            self.counts["rejected.references"] += 1
+            self.get_logger().warning(f"rejected reference: {result}", throttle_duration_sec=1.0)
+            return
+        self.core.add_trajectory(result)
         self.get_logger().info(
-            f"reference accepted: {len(traj.times)} point(s) from t={traj.start:.3f} s"
+            f"reference accepted: {len(result.times)} point(s) from t={result.start:.3f} s"
         )
+
+    def close(self) -> None:
+        """Stop the reference worker (a reference still being built is dropped)."""
+        self._reference_worker.shutdown(wait=False, cancel_futures=True)
 
     def _on_joint_state(self, raw: bytes, info: dict[str, int]) -> None:
         start = time.perf_counter_ns()
@@ -556,6 +607,7 @@ class JointController(Node):
         )
 
     def _restart(self) -> None:
+        self._generation += 1  # references being built now are of the time before
         with self._lock:  # gains designed at start: again at the next state
             self.core.restart()
 
@@ -583,8 +635,8 @@ class JointController(Node):
         self.get_logger().info(self._trigger_text())
         self._publish_config(self._values)
         deferred, self._deferred = self._deferred, []
-        for msg in deferred:
-            self._on_reference(msg)
+        for raw in deferred:
+            self._on_reference(raw)
         if trigger == "state" and self._q is not None and self._state_ns != self._answered_ns:
             # the plant has been waiting for this answer
             self._answer(time.perf_counter_ns(), -1)

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from trajectory_msgs.msg import JointTrajectory
@@ -25,6 +26,15 @@ from joint_space_control.trajectories.reference import Trajectory
 CONTROL_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+#: The plant's command subscriptions: every command received is judged (a foreign or broken
+#: one is counted, docs/safety.md), so none may be overwritten in the queue by the next one
+#: before the plant takes it; the newest valid command is the one held.
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=16,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
@@ -153,6 +163,59 @@ def float_array(msg: Float64MultiArray, size: int) -> np.ndarray:
     return _field(msg.data, size, "command")
 
 
+#: The largest reference a controller takes (rejected with the reason beyond): points,
+#: duration of its last point from its start [s], and its serialized size [bytes].
+MAX_REFERENCE_POINTS = 200_000
+MAX_REFERENCE_DURATION = 86_400.0
+MAX_REFERENCE_BYTES = 64 * 1024 * 1024
+
+
+#: The arrays of a trajectory point and what an error calls them.
+_POINT_FIELDS = {
+    "positions": "position",
+    "velocities": "velocity",
+    "accelerations": "acceleration",
+}
+_TYPESTORE = None
+_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
+
+
+def _typestore():
+    global _TYPESTORE
+    if _TYPESTORE is None:
+        from rosbags.typesys import Stores, get_typestore
+
+        _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+    return _TYPESTORE
+
+
+def prepare_reference_reader() -> None:
+    """Build rosbags' JointTrajectory reader now (it generates and compiles code the first
+    time, holding the interpreter for tens of milliseconds): at start, not while the
+    control loop runs."""
+    _typestore().deserialize_cdr(serialize_message(JointTrajectory()), _TRAJECTORY)
+
+
+def trajectory_from_bytes(
+    raw: bytes,
+    order: JointOrder,
+    now: float,
+    origin_ns: int,
+    position_limits: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Trajectory:
+    """:func:`trajectory_from_msg` of a serialized JointTrajectory, read by rosbags'
+    deserializer (Python: it lets other threads run while it reads 100,000 points, which
+    rclpy's C++ one does not for tens of milliseconds). ``ValueError`` for bytes that are
+    no JointTrajectory, or larger than MAX_REFERENCE_BYTES."""
+    if len(raw) > MAX_REFERENCE_BYTES:
+        raise ValueError(f"message of {len(raw)} bytes; at most {MAX_REFERENCE_BYTES} (split it)")
+    try:
+        msg = _typestore().deserialize_cdr(raw, _TRAJECTORY)
+    except Exception as err:  # noqa: BLE001 - rosbags' SerdeError and what its readers raise
+        raise ValueError(f"not a serialized JointTrajectory ({len(raw)} bytes): {err}") from None
+    return trajectory_from_msg(msg, order, now, origin_ns, position_limits)
+
+
 def trajectory_from_msg(
     msg: JointTrajectory,
     order: JointOrder,
@@ -166,47 +229,65 @@ def trajectory_from_msg(
     times are returned in seconds after ``origin_ns``, the controller's time origin. Every
     controlled joint must be present, no unknown or duplicated names; positions are required
     on every point, velocities and accelerations are optional but, when given, complete.
-    Rejected as well: a trajectory whose last point lies before ``now`` (it ended already),
+    Rejected as well: more than MAX_REFERENCE_POINTS points or a last point later than
+    MAX_REFERENCE_DURATION, a trajectory whose last point lies before ``now`` (it ended already),
     and points outside ``position_limits`` (lower, upper; set-points are rejected, not
     clamped: a clamped set-point is a different motion than the one asked for).
     """
     if not msg.points:
         raise ValueError("trajectory has no points")
+    if len(msg.points) > MAX_REFERENCE_POINTS:
+        raise ValueError(
+            f"trajectory has {len(msg.points)} points; at most {MAX_REFERENCE_POINTS} (split it)"
+        )
+    last = msg.points[-1].time_from_start
+    if last.sec + 1e-9 * last.nanosec > MAX_REFERENCE_DURATION:
+        raise ValueError(
+            f"trajectory lasts {last.sec + 1e-9 * last.nanosec:g} s; at most "
+            f"{MAX_REFERENCE_DURATION:g} s"
+        )
     idx = order.index(msg.joint_names, allow_extra=False)
     size = len(msg.joint_names)
-    times_ns, times, positions, velocities, accelerations = [], [], [], [], []
+    # one pass over the points filling preallocated arrays, the checks vectorized after it:
+    # no per-point arrays, no conversion of 100,000 rows in one call (the reference worker
+    # then lets the control loop run between its steps)
+    count = len(msg.points)
+    times_ns = np.empty(count, dtype=np.int64)
+    times = np.empty(count)
+    arrays = {name: np.empty((count, size)) for name in _POINT_FIELDS}
+    given = {name: np.zeros(count, dtype=bool) for name in _POINT_FIELDS}
     for k, point in enumerate(msg.points):
-        sec, nanosec = point.time_from_start.sec, point.time_from_start.nanosec
-        times_ns.append(sec * 1_000_000_000 + nanosec)
-        times.append(sec + 1e-9 * nanosec)
-        positions.append(_field(point.positions, size, f"point {k} position")[idx])
-        if len(point.velocities):
-            velocities.append(_field(point.velocities, size, f"point {k} velocity")[idx])
-        if len(point.accelerations):
-            accelerations.append(_field(point.accelerations, size, f"point {k} acceleration")[idx])
-    for name, given in (("velocities", velocities), ("accelerations", accelerations)):
-        if given and len(given) != len(positions):
+        d = point.time_from_start
+        times_ns[k] = d.sec * 1_000_000_000 + d.nanosec
+        times[k] = d.sec + 1e-9 * d.nanosec
+        for name, what in _POINT_FIELDS.items():
+            values = getattr(point, name)
+            if len(values) or name == "positions":
+                if len(values) != size:
+                    raise ValueError(f"{len(values)} point {k} {what} values for {size} names")
+                arrays[name][k] = values
+                given[name][k] = True
+    for name, what in _POINT_FIELDS.items():
+        rows = given[name]
+        if not rows.any():
+            continue
+        if not rows.all():
             raise ValueError(f"{name} given on some points only")
-    # exact on the message's integers first; then the seconds must still tell them apart
-    if times_ns[0] < 0 or np.any(np.diff(np.array(times_ns, dtype=np.int64)) <= 0):
-        raise ValueError(f"time_from_start must be >= 0 and strictly increasing: {times_ns} ns")
-    times = np.array(times)
-    close = np.flatnonzero(np.diff(times) <= 0)
-    if close.size:
-        k = close[0]
+        finite = np.isfinite(arrays[name]).all(axis=1)
+        if not finite.all():
+            raise ValueError(f"non-finite point {int(np.argmin(finite))} {what}")
+    # exact on the message's integers; within MAX_REFERENCE_DURATION the seconds (float64,
+    # spacing ≤ 1.5e-11 s there) keep 1 ns apart times apart and in order
+    if times_ns[0] < 0 or np.any(np.diff(times_ns) <= 0):
         raise ValueError(
-            f"times {times_ns[k]} ns and {times_ns[k + 1]} ns are too close to tell apart "
-            f"in seconds (float) at {times[k]:.0f} s"
+            f"time_from_start must be >= 0 and strictly increasing: {times_ns.tolist()} ns"
         )
+    positions = arrays["positions"][:, idx]
+    velocities = arrays["velocities"][:, idx] if given["velocities"].any() else None
+    accelerations = arrays["accelerations"][:, idx] if given["accelerations"].any() else None
     stamp = stamp_to_ns(msg.header.stamp)
     start = now if stamp == 0 else (stamp - origin_ns) * 1e-9
-    traj = Trajectory.build(
-        start,
-        times,
-        np.array(positions),
-        np.array(velocities) if velocities else None,
-        np.array(accelerations) if accelerations else None,
-    )
+    traj = Trajectory.build(start, times, positions, velocities, accelerations)
     if traj.end < now:
         raise ValueError(f"trajectory ended at t={traj.end:.3f} s, before now (t={now:.3f} s)")
     if position_limits is not None:

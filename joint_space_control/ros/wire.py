@@ -112,6 +112,7 @@ class JointStateImage:
         if sys.byteorder != "little":  # pragma: no cover - every supported host is
             raise RuntimeError("serialized images assume a little-endian host")
         self.names = tuple(names)
+        self.frame_id = frame_id
         self.sizes = sizes = sizes or (len(self.names),) * 3
         w = _CdrWriter()
         self._stamp_offset = w.uint32(0, fixed=False)
@@ -255,11 +256,15 @@ class JointStateReader:
         self._index: np.ndarray | None = None  # slots of the requested values, in order
         # slots of every value of those arrays, when some are not requested (extra names)
         self._checked: np.ndarray | None = None
+        #: ``header.frame_id`` of the message read last (its sender's claim, see sim_bridge)
+        self.frame_id = ""
 
     def read(self, raw: bytes) -> tuple[int, tuple[np.ndarray, ...]]:
-        """(stamp [ns], arrays in the controlled-joint order); raises ``ValueError``."""
+        """(stamp [ns], arrays in the controlled-joint order); raises ``ValueError``.
+        ``frame_id`` is then the message's ``header.frame_id``."""
         image = self._image
-        if image is not None and image.matches(raw):
+        if image is not None and image.matches(raw):  # the layout includes the frame_id
+            self.frame_id = image.frame_id
             block = np.frombuffer(raw, _F8, count=self._span, offset=self._base)
             values = block[self._index]
             checked = values if self._checked is None else block[self._checked]
@@ -272,6 +277,7 @@ class JointStateReader:
             msg = deserialize_message(raw, JointState)
         except RuntimeError as err:  # rmw's RMWError: truncated or garbled bytes
             raise ValueError(f"not a serialized JointState ({len(raw)} bytes): {err}") from None
+        self.frame_id = msg.header.frame_id
         arrays = self._ordinary(msg)
         self._learn(msg)
         stamp = msg.header.stamp

@@ -431,3 +431,27 @@ def test_rcl_init_errors_and_unknown_overrides_are_said_in_words():
     specs = (ParamSpec("kp", 0.0, "gain"), ParamSpec("rate", 1.0, "rate"))
     given = ["rate", "kp_gain", "use_sim_time", "qos_overrides./clock.publisher.depth", "ki"]
     assert unknown_overrides(given, specs) == ["ki", "kp_gain"]
+
+
+def test_references_beyond_the_documented_bounds_are_rejected_with_the_reason(monkeypatch):
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    from joint_space_control.ros import messages
+
+    def points(times):
+        return [
+            JointTrajectoryPoint(positions=[0.0], time_from_start=Duration(sec=s, nanosec=0))
+            for s in times
+        ]
+
+    order = messages.JointOrder(["j"])
+    monkeypatch.setattr(messages, "MAX_REFERENCE_POINTS", 3)
+    ok = JointTrajectory(joint_names=["j"], points=points([1, 2, 3]))
+    assert len(messages.trajectory_from_msg(ok, order, 0.0, 0).times) == 3
+    many = JointTrajectory(joint_names=["j"], points=points([1, 2, 3, 4]))
+    with pytest.raises(ValueError, match="has 4 points; at most 3"):
+        messages.trajectory_from_msg(many, order, 0.0, 0)
+    long = JointTrajectory(joint_names=["j"], points=points([1, 86_401]))
+    with pytest.raises(ValueError, match="lasts 86401 s; at most 86400 s"):
+        messages.trajectory_from_msg(long, order, 0.0, 0)

@@ -358,17 +358,26 @@ def test_invalid_trajectories_are_rejected_with_the_reason(case, defect, data):
 
 
 @settings(max_examples=20, deadline=None)
-@given(sec=st.integers(2**24, 2**31 - 1), nanosec=st.integers(0, 999_999_997))
-def test_increasing_times_too_close_for_seconds_are_rejected_as_such(sec, nanosec):
-    """Three points 1 ns apart, increasing as messages but one float spacing (≥ 3.7 ns)
-    apart at most as seconds: rejected, and the reason says why (not "not increasing")."""
+@given(sec=st.integers(0, 86_399), nanosec=st.integers(0, 999_999_997))
+def test_times_one_nanosecond_apart_stay_apart_within_the_duration_bound(sec, nanosec):
+    """Three points 1 ns apart anywhere within MAX_REFERENCE_DURATION: accepted, their
+    seconds (float64) strictly increasing; beyond the bound (2^24 s, where float seconds
+    could no longer tell 1 ns apart) the trajectory is rejected for its duration."""
     points = [
         JointTrajectoryPoint(positions=[0.0], time_from_start=Duration(sec=sec, nanosec=ns))
         for ns in (nanosec, nanosec + 1, nanosec + 2)
     ]
     msg = JointTrajectory(joint_names=["j"], points=points)
-    with pytest.raises(ValueError, match="too close to tell apart"):
-        trajectory_from_msg(msg, JointOrder(["j"]), 0.0, 0)
+    traj = trajectory_from_msg(msg, JointOrder(["j"]), 0.0, 0)
+    assert np.all(np.diff(traj.times) > 0)
+    late = [
+        JointTrajectoryPoint(positions=[0.0], time_from_start=Duration(sec=2**24, nanosec=ns))
+        for ns in (0, 1)
+    ]
+    with pytest.raises(ValueError, match="at most 86400 s"):
+        trajectory_from_msg(
+            JointTrajectory(joint_names=["j"], points=late), JointOrder(["j"]), 0.0, 0
+        )
 
 
 # -- the fast JointState reader ----------------------------------------------------------------

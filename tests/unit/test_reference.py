@@ -462,3 +462,25 @@ def test_spline_derivatives_match_finite_differences(positions_only):
         plus, minus, mid = ref.sample(t + H), ref.sample(t - H), ref.sample(t)
         np.testing.assert_allclose((plus.q - minus.q) / (2 * H), mid.dq, rtol=0, atol=1e-6)
         np.testing.assert_allclose((plus.dq - minus.dq) / (2 * H), mid.ddq, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("lead", [0.0, 0.5])
+def test_a_prepared_spline_equals_the_one_solved_at_activation(lead):
+    """Trajectory.prepared (the reference worker's): the knots of the Reference that starts
+    it from any sample equal the directly solved clamped spline's to 1e-13 (relative), with
+    and without a leading segment from the sample; the first and last knot velocities are
+    exact. Trajectories with velocities keep no basis."""
+    rng = np.random.default_rng(1)
+    times = lead + np.cumsum(rng.uniform(0.01, 0.1, 500))
+    tr = Trajectory.build(2.0, times, rng.normal(size=(500, 3)))
+    prepared = tr.prepared()
+    assert prepared.basis is not None and tr.basis is None
+    for _ in range(5):
+        initial = Sample(rng.normal(size=3), rng.normal(size=3), rng.normal(size=3))
+        direct, combined = Reference(tr, initial).knots, Reference(prepared, initial).knots
+        for x, y in zip(direct, combined, strict=True):
+            np.testing.assert_allclose(y, x, rtol=0, atol=1e-13 * max(1.0, np.abs(x).max()))
+        np.testing.assert_array_equal(combined[2][0], initial.dq)
+        np.testing.assert_array_equal(combined[2][-1], 0.0)
+    with_v = Trajectory.build(0.0, times, np.ones((500, 3)), np.zeros((500, 3)))
+    assert with_v.prepared() is with_v
