@@ -105,6 +105,7 @@ def test_lockstep_plant_runs_with_a_controller_on_sim_time_only(nodes, controlle
 
 
 @pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.realtime
 def test_realtime_plant_is_commanded_by_a_controller_with_nothing_set(nodes, controller):
     """Realtime sim_bridge and a controller on the wall clock (no use_sim_time): the states'
     stamps are simulation time, yet the controller commands and the brakes come off."""

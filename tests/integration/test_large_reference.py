@@ -22,7 +22,7 @@ from joint_space_control.ros.diagnostics import statuses
 from .conftest import GAINS
 from .test_faults import ROBOT, J, Rig, rig  # noqa: F401  (the fixture)
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.realtime]
 
 Q0 = [0.3, -0.2]
 POINTS = 100_000

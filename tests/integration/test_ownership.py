@@ -15,7 +15,7 @@ from joint_space_control.ros.messages import ns_to_stamp
 from .conftest import GAINS
 from .test_faults import LIMITS, ROBOT, J, Rig, rig  # noqa: F401  (the fixture)
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.realtime]
 
 Q0 = [0.3, -0.2]
 FOREIGN = 50  # valid commands from an intruder, over about a second
