@@ -8,6 +8,7 @@ resumed. Same inputs therefore give the same run, however loaded the machine is.
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,11 @@ import numpy as np
 from joint_space_control.experiments.domains import lease_domain
 from joint_space_control.experiments.probe import LoopProbe
 from joint_space_control.experiments.processes import ProcessGroup
+
+#: After the last state of a run, the nodes stop once the bag has not grown for this long
+#: [s] (longer than the recorder's flush_period while idle), or after RECORD_SETTLE_MAX.
+RECORD_QUIET = 1.5
+RECORD_SETTLE_MAX = 20.0
 
 
 class ClosedLoop:
@@ -123,6 +129,25 @@ class ClosedLoop:
     def final_state(self) -> tuple[np.ndarray, np.ndarray]:
         _, q, dq, _ = self.probe.recording.arrays()
         return q[-1], dq[-1]
+
+    def settle_recording(self) -> None:
+        """Wait until the recorder has taken the tail of the run before the nodes stop: a
+        lockstep plant runs faster than the recorder writes, and what is still on its way
+        when the plant's process ends is lost (seen: the last 160–1260 of 3000 states). The
+        plant is paused by then; the bag grows while the recorder works through its backlog
+        (it flushes at least every flush_period of wall time while idle), so the wait ends
+        once the bag has not grown for RECORD_QUIET seconds (at most RECORD_SETTLE_MAX)."""
+        if self.bag is None:
+            return
+        deadline = time.monotonic() + RECORD_SETTLE_MAX
+        size, since = -1, time.monotonic()
+        while time.monotonic() < deadline:
+            now = sum(f.stat().st_size for f in self.bag.glob("*") if f.is_file())
+            if now != size:
+                size, since = now, time.monotonic()
+            elif time.monotonic() - since >= RECORD_QUIET:
+                return
+            time.sleep(0.1)
 
     def close(self) -> None:
         """Stop everything (idempotent; Ctrl-C may close a loop from another thread)."""

@@ -127,6 +127,7 @@ def run_once(scenario: Scenario, out: Path, short: bool, result: RunResult) -> N
             _active.add(loop)
         try:
             _drive(loop, scenario, duration, result)
+            loop.settle_recording()
         finally:
             with _active_lock:
                 _active.discard(loop)
