@@ -58,7 +58,7 @@ CASES = {
     "pd_gravity_controller": ({}, ("sim_bridge",), "joints ["),
     "inverse_dynamics_controller": ({}, ("sim_bridge",), "joints ["),
     "trajectory_generator": (
-        {"shape": "sinusoid", "amplitude": 0.1, "omega": 2.0},
+        {"shape": "sinusoid", "amplitude": 0.1, "omega": 2.0, "start_from_current": True},
         ("sim_bridge", "pd_gravity_controller"),
         "trajectory_generator:",
     ),
