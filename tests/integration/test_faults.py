@@ -271,6 +271,7 @@ def test_plant_rejects_bad_commands_and_parameters_and_limits_the_torque(rig):
     np.testing.assert_allclose(tau[-1], [1999.0, -999.0], rtol=0, atol=1e-9)  # 1 N·m / ms
 
 
+@pytest.mark.realtime
 def test_killed_controller_brakes_the_plant_and_a_new_one_takes_over_bumplessly(rig):
     """Realtime: SIGKILL the controller → within command_timeout (simulation time) the plant
     brakes and says so; a new controller starts from the measured configuration, its first
@@ -400,6 +401,7 @@ def test_restarted_simulator_is_detected_and_the_controller_resumes_cleanly(make
     assert np.linalg.norm(q - target) < 0.7 * np.linalg.norm(np.array(q0) - target), q
 
 
+@pytest.mark.realtime
 def test_controller_stops_commanding_on_stale_states_and_resumes(rig):
     """trigger=timer on the system clock: while states keep coming it commands; when they
     stop for longer than state_timeout it stops and raises an ERROR; when they come back it
