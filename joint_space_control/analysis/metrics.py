@@ -292,16 +292,9 @@ def tracking_error(
     q_des = _samples(q_des, t.size, "q_des")
     if q.shape != q_des.shape:
         raise ValueError(f"'q' has shape {q.shape} but 'q_des' has {q_des.shape}")
-    lo = -math.inf if t_start is None else float(t_start)
-    hi = math.inf if t_end is None else float(t_end)
-    if math.isnan(lo) or math.isnan(hi) or lo > hi:
-        raise ValueError(f"bad time window [{t_start}, {t_end}]")
-    first = int(np.searchsorted(t, lo, side="left"))
-    stop = int(np.searchsorted(t, hi, side="right"))
-    if stop <= first:
-        raise ValueError(f"no sample in the time window [{t_start}, {t_end}]")
-    tw = t[first:stop]
-    e2 = (q_des[:, first:stop] - q[:, first:stop]) ** 2
+    window = _window_slice(t, t_start, t_end)
+    tw = t[window]
+    e2 = (q_des[:, window] - q[:, window]) ** 2
     span = tw[-1] - tw[0]
     if span > 0.0:
         dt = np.diff(tw)
