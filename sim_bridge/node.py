@@ -93,8 +93,6 @@ COUNTERS = (
     "rejected.wrenches",
     "brake.engaged",
 )
-#: Lockstep: the longest a resume waits for known subscribers of the states to match [s].
-MATCH_WAIT = 2.0
 #: How often [s] the graph is checked for an owner that left.
 OWNER_CHECK = 0.25
 #: Recent states whose publication time is kept for the command latency (realtime).
@@ -785,8 +783,6 @@ class SimBridge(Node):
         return response
 
     def _on_resume(self, request: Trigger.Request, response: Trigger.Response) -> Any:
-        if self.mode == "lockstep":
-            self._wait_for_matching()
         with self._lock:
             was_paused, self._paused = self._paused, False
             if self.mode == "realtime":
@@ -795,23 +791,6 @@ class SimBridge(Node):
                 self._publish_state()
         response.success, response.message = True, "running"
         return response
-
-    def _wait_for_matching(self) -> None:
-        """Lockstep: before the states go out again, wait (at most MATCH_WAIT) until every
-        subscriber of the state topics the graph knows of is matched with their publishers:
-        a subscriber that joined while the plant was paused (a recorder) then misses none of
-        the states, however late discovery completes, and a recorded run is the same every
-        time."""
-        deadline = time.monotonic() + MATCH_WAIT
-        pairs = [(self._state_pub, "joint_states"), (self._true_pub, "~/true_joint_states")]
-        topics = [(pub, self.resolve_topic_name(name)) for pub, name in pairs]
-        while time.monotonic() < deadline:
-            if all(
-                pub.get_subscription_count() >= len(self.get_subscriptions_info_by_topic(topic))
-                for pub, topic in topics
-            ):
-                return
-            time.sleep(0.005)
 
     def close(self) -> None:
         self._running = False
