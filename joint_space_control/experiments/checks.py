@@ -13,7 +13,6 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from joint_space_control.experiments import practice, views
 from joint_space_control.experiments.views import Outcome, RunView
@@ -71,10 +70,7 @@ def gravity_bound(robot: str, samples: int = 4000, seed: int = 0) -> float:
     rng = np.random.default_rng(seed)
     best = 0.0
     for q in rng.uniform(lo, hi, size=(samples, model.n)):
-        dg = pin.computeGeneralizedGravityDerivatives(
-            model.model, model.data, model.configuration(q)
-        )
-        best = max(best, float(np.linalg.norm(dg, 2)))
+        best = max(best, float(np.linalg.norm(views.gravity_jacobian(model, q), 2)))
     return best
 
 

@@ -17,7 +17,15 @@ import numpy as np
 
 from joint_space_control.analysis import frequency
 from joint_space_control.analysis.metrics import position_spread
-from joint_space_control.experiments.views import Outcome, RunView, fmt, joints, model, vec
+from joint_space_control.experiments.views import (
+    Outcome,
+    RunView,
+    fmt,
+    gravity_jacobian,
+    joints,
+    model,
+    vec,
+)
 from joint_space_control.laws.disturbance import (
     coulomb_dead_band,
     inverse_dynamics_static_offset,
@@ -454,16 +462,6 @@ def frequency_response(
     return out
 
 
-def _gravity_jacobian(m: Any, q: np.ndarray) -> np.ndarray:
-    """∂g/∂q at q [N·m/rad] (Pinocchio's analytic derivative)."""
-    import pinocchio as pin
-
-    return np.asarray(
-        pin.computeGeneralizedGravityDerivatives(m.model, m.data, m.configuration(q)),
-        dtype=float,
-    )
-
-
 def _estimator(source: str, n: int, cutoff: float) -> Any:
     from joint_space_control.laws.velocity import BackwardDifference, FilteredDifference
 
@@ -511,9 +509,7 @@ def predicted_chatter(
     kd = np.asarray(r.controller["config"]["kd"], dtype=float)
     feedback = -kp * noise_q - kd * v
     inverse = r.executable == "inverse_dynamics_controller"
-    tau = (feedback @ m.inertia(q).T if inverse else feedback) + noise_q @ _gravity_jacobian(
-        m, q
-    ).T
+    tau = (feedback @ m.inertia(q).T if inverse else feedback) + noise_q @ gravity_jacobian(m, q).T
     return np.sqrt(np.mean(np.diff(tau[100:], axis=0) ** 2, axis=0))
 
 
