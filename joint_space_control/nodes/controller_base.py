@@ -49,7 +49,7 @@ published again with the gains in force.
 
 from __future__ import annotations
 
-import gc
+import dataclasses
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -86,6 +86,7 @@ from joint_space_control.ros.messages import (
     trajectory_from_bytes,
 )
 from joint_space_control.ros.plant_mode import PlantModeWatcher
+from joint_space_control.ros.reference_worker import ReferenceBuilder
 from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
 from joint_space_control.trajectories.reference import Trajectory
 
@@ -294,7 +295,8 @@ class JointController(Node):
         self._state_arrival = 0.0  # when it arrived (time.monotonic) [s]
         self._deferred: list[bytes] = []  # references received while pending
         # references are built off the control path with trigger=timer (see _on_reference)
-        self._reference_worker = ThreadPoolExecutor(1, thread_name_prefix="references")
+        self._reference_thread = ThreadPoolExecutor(1, thread_name_prefix="references")
+        self._reference_builder = ReferenceBuilder()
         prepare_reference_reader()
         self._generation = 0  # incremented by a restart
         self._answered_ns = -1
@@ -479,59 +481,62 @@ class JointController(Node):
     def _on_reference(self, raw: bytes, info: Any = None) -> None:
         """A reference's bytes (control path). With ``trigger: state`` (lockstep: time waits
         for the answer) it is validated and splined here, before the next state is
-        answered, so a run does not depend on timing; otherwise the reference worker does
-        it and the trajectory is swapped in between two ticks once ready: the tick never
-        waits for it (a 100,000-point trajectory takes about a second to read)."""
+        answered, so a run does not depend on timing; otherwise the reference thread has it
+        built (:class:`~joint_space_control.ros.reference_worker.ReferenceBuilder`: a large
+        one in a process of its own, so the loop never shares the interpreter with it) and
+        the trajectory is swapped in between two ticks once ready: the tick never waits."""
         if self.trigger == "pending":  # its time base (state stamps or clock) is not known
             self._deferred.append(raw)
             return
-        now = self._now()  # a start time of 0 means the moment it arrived
+        now = self._now()
         if self.trigger == "state":
             self._take_reference(self._build_reference(raw, now), self._generation)
             return
         try:
-            self._reference_worker.submit(self._prepare_reference, raw, now, self._generation)
-        except RuntimeError:  # the worker is shut down: the node is closing
+            self._reference_thread.submit(self._prepare_reference, raw, now, self._generation)
+        except RuntimeError:  # the thread is shut down: the node is closing
             pass
 
     def _build_reference(self, raw: bytes, now: float) -> Trajectory | str:
-        """The validated trajectory, or why it is rejected (any thread)."""
+        """The validated trajectory (a zero ``header.stamp`` starts it ``now``), or why it
+        is rejected."""
         try:
             return trajectory_from_bytes(raw, self._order, now, 0, self.model.position_limits)
         except ValueError as err:
             return str(err)
 
-    def _prepare_reference(self, raw: bytes, now: float, generation: int) -> None:
-        """The reference worker: build, then hand over to the control path. The cyclic
-        garbage collector is off meanwhile: a full collection among the 100,000 objects of
-        a large reference would hold the interpreter for ~100 ms (reference counting frees
-        them; nothing they make is cyclic)."""
-        gc.disable()
-        try:
-            result = self._build_reference(raw, now)
-            if not isinstance(result, str):  # its spline solved here, not at activation
-                result = result.prepared()
-        finally:
-            gc.enable()
-        self.control_path.post(lambda: self._take_reference(result, generation))
+    def _prepare_reference(self, raw: bytes, arrival: float, generation: int) -> None:
+        """The reference thread: build, then hand over to the control path."""
+        result = self._reference_builder.build(
+            raw, self.joints, arrival, self.model.position_limits
+        )
+        self.control_path.post(lambda: self._take_reference(result, generation, arrival))
 
-    def _take_reference(self, result: Trajectory | str, generation: int) -> None:
+    def _take_reference(
+        self, result: Trajectory | str, generation: int, arrival: float | None = None
+    ) -> None:
         """Schedule a built trajectory, or count and say why it was rejected (control
-        path); one built before a restart is dropped (the restart forgot the references)."""
+        path); one built before a restart is dropped (the restart forgot the references).
+        One built off the control path from its ``arrival`` whose stamp was zero ("now")
+        starts now, when it is taken, as joint_trajectory_controller starts such a
+        trajectory at its first sample: its beginning is not lost to the build time."""
         if generation != self._generation:
             return
         if isinstance(result, str):
             self.counts["rejected.references"] += 1
             self.get_logger().warning(f"rejected reference: {result}", throttle_duration_sec=1.0)
             return
+        if arrival is not None and result.start == arrival:
+            result = dataclasses.replace(result, start=self._now())
         self.core.add_trajectory(result)
         self.get_logger().info(
             f"reference accepted: {len(result.times)} point(s) from t={result.start:.3f} s"
         )
 
     def close(self) -> None:
-        """Stop the reference worker (a reference still being built is dropped)."""
-        self._reference_worker.shutdown(wait=False, cancel_futures=True)
+        """Stop the reference thread and process (a reference being built is dropped)."""
+        self._reference_thread.shutdown(wait=False, cancel_futures=True)
+        self._reference_builder.close()
 
     def _on_joint_state(self, raw: bytes, info: dict[str, int]) -> None:
         start = time.perf_counter_ns()

@@ -209,9 +209,16 @@ def trajectory_from_bytes(
     no JointTrajectory, or larger than MAX_REFERENCE_BYTES."""
     if len(raw) > MAX_REFERENCE_BYTES:
         raise ValueError(f"message of {len(raw)} bytes; at most {MAX_REFERENCE_BYTES} (split it)")
+    if len(raw) < 4 or bytes(raw[:2]) not in (b"\x00\x00", b"\x00\x01"):
+        raise ValueError(f"not a serialized JointTrajectory ({len(raw)} bytes): no CDR header")
+    # rosbags' reader without its exact-length check (deserialize_cdr), which refuses the
+    # trailing bytes that rmw_serialize leaves (rclpy's serialize_message) and rclpy accepts
+    store = _typestore()
+    msgdef = store.get_msgdef(_TRAJECTORY)
+    read = msgdef.deserialize_cdr_le if raw[1] else msgdef.deserialize_cdr_be
     try:
-        msg = _typestore().deserialize_cdr(raw, _TRAJECTORY)
-    except Exception as err:  # noqa: BLE001 - rosbags' SerdeError and what its readers raise
+        msg, _ = read(memoryview(raw)[4:], 0, msgdef.cls, store)
+    except Exception as err:  # noqa: BLE001 - struct.error, ValueError, UnicodeDecodeError...
         raise ValueError(f"not a serialized JointTrajectory ({len(raw)} bytes): {err}") from None
     return trajectory_from_msg(msg, order, now, origin_ns, position_limits)
 

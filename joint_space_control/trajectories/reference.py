@@ -179,39 +179,51 @@ class SplineBasis:
         v_dq, a_dq = _clamped_cubic_spline(t, np.zeros((t.size, 1)), one, zero)
         return cls(v, a, v_q, a_q, v_dq, a_dq)
 
-    def spline(self, initial: Sample) -> tuple[np.ndarray, np.ndarray]:
-        """Knot velocities and accelerations of the spline starting from ``initial``."""
-        v = self.v + self.v_q * initial.q + self.v_dq * initial.dq
-        a = self.a + self.a_q * initial.q + self.a_dq * initial.dq
-        v[0], v[-1] = initial.dq, 0.0  # exactly, as the direct solution
+    def spline(self, initial: Sample, rows: slice) -> tuple[np.ndarray, np.ndarray]:
+        """Knot velocities and accelerations of the spline starting from ``initial``, at
+        ``rows`` (the end knots' exact values are the caller's)."""
+        v = self.v[rows] + self.v_q[rows] * initial.q + self.v_dq[rows] * initial.dq
+        a = self.a[rows] + self.a_q[rows] * initial.q + self.a_dq[rows] * initial.dq
         return v, a
 
 
 class Reference:
-    """Samples a trajectory, starting from the sample that was active when it was set."""
+    """Samples a trajectory, starting from the sample that was active when it was set.
+
+    Starting one costs O(1) in its points unless its spline must be solved here (positions
+    only and not :meth:`~Trajectory.prepared`): the knot arrays (t, q, q̇, q̈), which
+    include the tracked sample as first knot when the trajectory starts later, are filled
+    in blocks of :attr:`BLOCK` rows as sampling reaches them, so a controller that switches
+    to a 100,000-point trajectory does not spend one tick copying it. A block's values are
+    the same elementwise operations as over the whole arrays: the samples are identical to
+    filling them at once."""
+
+    BLOCK = 2048
 
     def __init__(self, trajectory: Trajectory, initial: Sample) -> None:
-        self.trajectory = trajectory
-        tr = trajectory
-        if tr.times[0] > 0:  # a leading segment from the state held when it arrived
-            t = np.concatenate(([0.0], tr.times))
-            p = np.vstack((initial.q, tr.positions))
-            v = np.vstack((initial.dq, tr.velocities))
-            a = np.vstack((initial.ddq, tr.accelerations))
-        else:
-            t, p, v, a = tr.times, tr.positions, tr.velocities, tr.accelerations
-        if t.size > 1 and not tr.accelerations_given:
-            if tr.velocities_given:
-                a = _mean_cubic_accelerations(t, p, v)
-            elif tr.basis is not None:  # prepared ahead: combined, not solved, here
-                v, a = tr.basis.spline(initial)
-            else:
-                v, a = _clamped_cubic_spline(t, p, initial.dq, np.zeros_like(initial.dq))
-            a[0], a[-1] = initial.ddq, 0.0
-        for arr in (t, p, v, a):
-            arr.setflags(write=False)
-        self._t, self._p, self._v, self._a = t, p, v, a
+        self.trajectory = tr = trajectory
         self._initial = initial
+        self._lead = lead = int(tr.times[0] > 0)  # the tracked sample is the first knot
+        self._size = size = tr.times.size + lead
+        self._first = 0.0 if lead else float(tr.times[0])
+        self._end = float(tr.times[-1])
+        shape = (size, tr.positions.shape[1])
+        self._t, self._p = np.empty(size), np.empty(shape)
+        self._v, self._a = np.empty(shape), np.empty(shape)
+        self._filled = 0  # rows [0, _filled) are final
+        computed = size > 1 and not tr.accelerations_given
+        self._fill_rows = self._given
+        if computed and tr.velocities_given:
+            self._fill_rows = self._mean_cubic
+        elif computed and tr.basis is not None:  # prepared ahead: combined, not solved
+            self._fill_rows = self._combined
+        elif computed:  # a global solve: every row now
+            self._given(0, size)
+            self._v, self._a = _clamped_cubic_spline(
+                self._t, self._p, initial.dq, np.zeros_like(initial.dq)
+            )
+            self._a[0], self._a[-1] = initial.ddq, 0.0
+            self._filled = size
 
     @classmethod
     def hold(cls, q: np.ndarray, start: float = 0.0) -> Reference:
@@ -224,21 +236,29 @@ class Reference:
     def end(self) -> float:
         """Time of the last knot after the trajectory's start [s]: from then on the sample
         is the last point at rest."""
-        return float(self._t[-1])
+        return self._end
 
     @property
     def knots(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(times after the start [s], q, q̇, q̈) at the knots the segments join (read-only)."""
-        return self._t, self._p, self._v, self._a
+        """(times after the start [s], q, q̇, q̈) at the knots the segments join (read-only
+        views; every row filled)."""
+        self._fill(self._size)
+        views = tuple(arr.view() for arr in (self._t, self._p, self._v, self._a))
+        for view in views:
+            view.setflags(write=False)
+        return views
 
     def sample(self, t: float) -> Sample:
         """(q_d, q̇_d, q̈_d) at time t [s] in the same clock as the trajectory's start."""
         s = t - self.trajectory.start
-        if s < self._t[0]:
+        if s < self._first:
             return self._initial
-        if s >= self._t[-1]:
-            return Sample(self._p[-1], np.zeros_like(self._p[-1]), np.zeros_like(self._p[-1]))
-        k = int(np.searchsorted(self._t, s, side="right")) - 1
+        if s >= self._end:
+            last = self.trajectory.positions[-1]
+            return Sample(last, np.zeros_like(last), np.zeros_like(last))
+        k = int(np.searchsorted(self.trajectory.times, s, side="right")) - 1 + self._lead
+        if k + 2 > self._filled:
+            self._fill(k + 2)
         return _quintic(
             self._t[k],
             self._t[k + 1],
@@ -247,6 +267,58 @@ class Reference:
             self._a[k : k + 2],
             s,
         )
+
+    # -- the knot rows ---------------------------------------------------------------
+    def _fill(self, rows: int) -> None:
+        """Make at least ``rows`` rows final, a whole block at a time."""
+        high = min(self._size, max(rows, self._filled + self.BLOCK))
+        if high > self._filled:
+            self._fill_rows(self._filled, high)
+            self._filled = high
+
+    def _given(self, low: int, high: int) -> None:
+        """Rows [low, high) as the trajectory gives them (after the tracked sample)."""
+        tr, lead, initial = self.trajectory, self._lead, self._initial
+        if lead and low == 0:
+            self._t[0], self._p[0] = 0.0, initial.q
+            self._v[0], self._a[0] = initial.dq, initial.ddq
+            low = 1
+        rows = slice(low - lead, high - lead)
+        self._t[low:high] = tr.times[rows]
+        self._p[low:high] = tr.positions[rows]
+        self._v[low:high] = tr.velocities[rows]
+        self._a[low:high] = tr.accelerations[rows]
+
+    def _mean_cubic(self, low: int, high: int) -> None:
+        """Velocities given: interior accelerations from the neighbouring rows."""
+        self._given(low, min(high + 1, self._size))
+        inner = slice(max(low, 1), min(high, self._size - 1))
+        if inner.start < inner.stop:
+            around = slice(inner.start - 1, inner.stop + 1)
+            self._a[inner] = _mean_cubic_accelerations(
+                self._t[around], self._p[around], self._v[around]
+            )[1:-1]
+        self._ends(low, high, velocities=False)
+
+    def _combined(self, low: int, high: int) -> None:
+        """Positions only, prepared: the spline from the precomputed solutions."""
+        self._given(low, high)
+        self._v[low:high], self._a[low:high] = self.trajectory.basis.spline(
+            self._initial, slice(low, high)
+        )
+        self._ends(low, high, velocities=True)
+
+    def _ends(self, low: int, high: int, velocities: bool) -> None:
+        """The end knots: the tracked q̇ (if the spline chose it), q̈ at the first; rest at
+        the last."""
+        if low == 0:
+            self._a[0] = self._initial.ddq
+            if velocities:
+                self._v[0] = self._initial.dq
+        if high == self._size:
+            self._a[-1] = 0.0
+            if velocities:
+                self._v[-1] = 0.0
 
 
 def _clamped_cubic_spline(

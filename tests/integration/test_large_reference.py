@@ -1,13 +1,18 @@
 """A reference is validated and splined off the control path (issue 15, item 3): a
-100,000-point trajectory sent to a realtime controller holding the arm is built by its
-reference worker while the control loop keeps running, and the plant's brakes never engage.
-Before, the control path read and splined it itself: a 1.3 s stall (brakes after 0.1 s).
+100,000-point trajectory (4 MB) sent to a realtime controller holding the arm is built in
+the controller's reference process (ros/reference_worker.py) while the control loop keeps
+its usual timing, and the plant's brakes never engage.
 
-What this does not reach yet: the worker is a thread, and while it reads the trajectory
-(about a second of Python) it competes with the control loop for the interpreter, so single
-periods stretch to 30–70 ms on this machine (the usual p99 is ~3.5 ms); a worker process
-would remove that. The plant's command_timeout is 1 s here so that a loaded test machine's
-own stalls do not brake it; a stall of the old kind would."""
+Judged on the controller's /diagnostics windows (1 s each): the loop's period p99 over the
+windows while the reference is received, built and started stays that of the windows before
+(mean of the window p99s within 1.5×), and no period reaches 50 ms. Measured on this 2-core
+machine with plant, controller and probe running: p99 1.7–2.5 ms before, 1.9–2.9 ms during
+(one window 5.8 ms in one of four runs); the worst period during, 9–17 ms, is rclpy copying
+the 4 MB message when the control path takes it. Built in a thread of the controller (the
+previous design), the same run gave window p99s of 9–13 ms and worst periods of 77–122 ms;
+built on the control path (before that), a 1.3 s stall that braked the plant. The plant's
+command_timeout is 1 s here so that a loaded test machine's own stalls do not brake it.
+"""
 
 from __future__ import annotations
 
@@ -75,13 +80,12 @@ def test_a_100000_point_reference_does_not_stall_the_realtime_loop(rig: Rig):  #
     probe.spin_for(2.5)
     during = [w[CONTROLLER] for w in windows[start:] if CONTROLLER in w]
     plant = [w[PLANT] for w in windows[start:] if PLANT in w]
-    usual = max(w["period.p99_us"] for w in before)
+    usual = [w["period.p99_us"] for w in before]
+    now = [w["period.p99_us"] for w in during]
     worst = max(w["period.max_us"] for w in during)
-    print(
-        f"period p99 before {usual} us, max before {max(w['period.max_us'] for w in before)}, "
-        f"max during {worst}, compute max during {max(w['compute.max_us'] for w in during)}"
-    )
+    print(f"period p99 before {usual} us, during {now}; worst period during {worst} us")
     assert plant[-1]["brake.engaged"] == brakes  # no brake while the reference was built
-    assert worst < 1_000_000.0  # [µs]: within the plant's command_timeout
+    assert np.mean(now) <= 1.5 * np.mean(usual)  # the loop's usual timing
+    assert worst < 50_000.0  # [µs]
     log = controller.log()
     assert "rejected" not in log and "Traceback" not in log

@@ -484,3 +484,38 @@ def test_a_prepared_spline_equals_the_one_solved_at_activation(lead):
         np.testing.assert_array_equal(combined[2][-1], 0.0)
     with_v = Trajectory.build(0.0, times, np.ones((500, 3)), np.zeros((500, 3)))
     assert with_v.prepared() is with_v
+
+
+@pytest.mark.parametrize("lead", [0.0, 0.5])
+@pytest.mark.parametrize("given", ["positions", "velocities", "both"])
+def test_knots_filled_block_by_block_sample_as_filled_at_once(monkeypatch, lead, given):
+    """Reference fills its knot rows a block at a time as sampling reaches them (a start
+    is O(1) in the points): with blocks of 3 rows, sampled out of order, every sample and
+    the knots are bit-identical to blocks larger than the trajectory (all filled at the
+    first sample)."""
+    rng = np.random.default_rng(7)
+    m = 40
+    times = lead + np.concatenate(([0.0], np.cumsum(rng.uniform(0.01, 0.1, m - 1))))
+    extra = {}
+    if given in ("velocities", "both"):
+        extra["velocities"] = rng.normal(size=(m, 2))
+    if given == "both":
+        extra["accelerations"] = rng.normal(size=(m, 2))
+    tr = Trajectory.build(1.0, times, rng.normal(size=(m, 2)), **extra).prepared()
+    initial = Sample(rng.normal(size=2), rng.normal(size=2), rng.normal(size=2))
+    instants = 1.0 + rng.uniform(-0.1, times[-1] + 0.1, 300)
+
+    def run(block: int):
+        monkeypatch.setattr(Reference, "BLOCK", block)
+        ref = Reference(tr, initial)
+        samples = [ref.sample(t) for t in instants]
+        return samples, ref.knots
+
+    small, small_knots = run(3)
+    whole, whole_knots = run(10**6)
+    for a, b in zip(small, whole, strict=True):
+        for x, y in ((a.q, b.q), (a.dq, b.dq), (a.ddq, b.ddq)):
+            np.testing.assert_array_equal(x, y)
+    for x, y in zip(small_knots, whole_knots, strict=True):
+        np.testing.assert_array_equal(x, y)
+    assert small_knots[0].size == m + int(lead > 0)
