@@ -67,6 +67,7 @@ from std_srvs.srv import Trigger
 
 from joint_space_control.laws.limits import beyond_bound
 from joint_space_control.ros import parameters as params
+from joint_space_control.ros import realtime_threads
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
 from joint_space_control.ros.loop_statistics import LoopStatistics
@@ -78,6 +79,7 @@ from joint_space_control.ros.messages import (
     float_array,
 )
 from joint_space_control.ros.node_main import run_node
+from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.wire import JointStateImage, JointStateReader
 from sim_bridge import pacing
 from sim_bridge.ownership import ARRAY_COMMANDER, CommandOwnership
@@ -108,171 +110,181 @@ STALL_REPEAT = 10.0
 POSITIVE = {"minimum": 0.0, "exclusive": True}
 NONNEGATIVE = {"minimum": 0.0}
 
-PARAMETERS = params.ROBOT_PARAMETERS + (
-    params.ParamSpec("mode", "realtime", "Plant timing", read_only=True, choices=MODES),
-    params.ParamSpec(
-        "physics_rate",
-        1000.0,
-        "Physics step rate, a multiple of publish_rate",
-        read_only=True,
-        unit="Hz",
-        **POSITIVE,
-    ),
-    params.ParamSpec(
-        "publish_rate",
-        1000.0,
-        "Joint state rate (= command period in lockstep)",
-        read_only=True,
-        unit="Hz",
-        **POSITIVE,
-    ),
-    params.ParamSpec(
-        "initial_positions",
-        0.0,
-        "Initial joint positions (clipped into the joint limits)",
-        read_only=True,
-        dynamic=True,
-        unit="rad",
-    ),
-    params.ParamSpec(
-        "viscous_friction",
-        0.0,
-        "Plant viscous friction F (the URDF's joint damping is not applied)",
-        dynamic=True,
-        unit="N·m·s/rad",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec(
-        "payload_mass",
-        0.0,
-        "Point mass at the centre of mass of the last joint's link (plant only)",
-        unit="kg",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec(
-        "command_timeout",
-        0.1,
-        "Realtime: brake when no valid command for this long",
-        unit="s",
-        **POSITIVE,
-    ),
-    params.ParamSpec(
-        "max_torque_rate",
-        0.0,
-        "Torque-rate limit on the applied torque (0: off)",
-        dynamic=True,
-        unit="N·m/s",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec(
-        "republish_period",
-        0.5,
-        "Lockstep: send an unanswered state again after this wall time",
-        read_only=True,
-        unit="s",
-        **POSITIVE,
-    ),
-    params.ParamSpec("start_paused", False, "Start paused (call ~/resume to run)", read_only=True),
-    params.ParamSpec(
-        "pause_at",
-        0.0,
-        "Lockstep: pause once the state at this simulation time is published "
-        "(0: never); setting it again re-arms it",
-        unit="s",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
-    params.REJECT_FACTOR,
-    # -- imperfections (docs/plant.md), all off by default --
-    params.ParamSpec(
-        "encoder_counts",
-        0.0,
-        "Encoder counts per revolution: published positions rounded to 2π/counts (0: off)",
-        dynamic=True,
-        unit="counts/rev",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec(
-        "position_noise",
-        0.0,
-        "σ of the Gaussian noise on the published positions, before quantization",
-        dynamic=True,
-        unit="rad",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec(
-        "velocity_noise",
-        0.0,
-        "σ of the Gaussian noise on the published velocities",
-        dynamic=True,
-        unit="rad/s",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec(
-        "noise_seed",
-        0,
-        "Seed of the measurement noise (numpy default_rng); setting it restarts the noise",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec(
-        "measure_velocity",
-        True,
-        "false: joint_states carry no velocities (an empty velocity array)",
-        read_only=True,
-    ),
-    params.ParamSpec(
-        "coulomb_friction",
-        0.0,
-        "Plant Coulomb friction F_c (a velocity motor with target 0 and at most F_c)",
-        dynamic=True,
-        unit="N·m or N",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec(
-        "static_friction",
-        0.0,
-        "Stiction F_s >= F_c, held below 1e-3 rad/s (0: same as coulomb_friction)",
-        dynamic=True,
-        unit="N·m or N",
-        **NONNEGATIVE,
-    ),
-    params.ParamSpec(
-        "wrench_link",
-        "",
-        "Link of the scheduled wrench ('': the last controlled joint's child link)",
-    ),
-    params.ParamSpec(
-        "wrench_force",
-        [0.0, 0.0, 0.0],
-        "Scheduled force on the robot, world frame, at the link frame's origin (0: off)",
-        kind="numbers",
-        length=3,
-        unit="N",
-    ),
-    params.ParamSpec(
-        "wrench_torque",
-        [0.0, 0.0, 0.0],
-        "Scheduled torque on the robot, world frame (0 and a zero force: off)",
-        kind="numbers",
-        length=3,
-        unit="N·m",
-    ),
-    params.ParamSpec(
-        "wrench_profile", "step", "Scheduled wrench profile in time", choices=PROFILES
-    ),
-    params.ParamSpec(
-        "wrench_start", 0.0, "Scheduled wrench: start time (simulation)", unit="s", **NONNEGATIVE
-    ),
-    params.ParamSpec(
-        "wrench_duration", 0.0, "Scheduled wrench: length of a pulse", unit="s", **NONNEGATIVE
-    ),
-    params.ParamSpec(
-        "wrench_frequency",
-        0.0,
-        "Scheduled wrench: frequency of a sinusoid",
-        unit="Hz",
-        **NONNEGATIVE,
-    ),
+PARAMETERS = (
+    params.ROBOT_PARAMETERS
+    + realtime_threads.PARAMETERS
+    + (
+        params.ParamSpec("mode", "realtime", "Plant timing", read_only=True, choices=MODES),
+        params.ParamSpec(
+            "physics_rate",
+            1000.0,
+            "Physics step rate, a multiple of publish_rate",
+            read_only=True,
+            unit="Hz",
+            **POSITIVE,
+        ),
+        params.ParamSpec(
+            "publish_rate",
+            1000.0,
+            "Joint state rate (= command period in lockstep)",
+            read_only=True,
+            unit="Hz",
+            **POSITIVE,
+        ),
+        params.ParamSpec(
+            "initial_positions",
+            0.0,
+            "Initial joint positions (clipped into the joint limits)",
+            read_only=True,
+            dynamic=True,
+            unit="rad",
+        ),
+        params.ParamSpec(
+            "viscous_friction",
+            0.0,
+            "Plant viscous friction F (the URDF's joint damping is not applied)",
+            dynamic=True,
+            unit="N·m·s/rad",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "payload_mass",
+            0.0,
+            "Point mass at the centre of mass of the last joint's link (plant only)",
+            unit="kg",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "command_timeout",
+            0.1,
+            "Realtime: brake when no valid command for this long",
+            unit="s",
+            **POSITIVE,
+        ),
+        params.ParamSpec(
+            "max_torque_rate",
+            0.0,
+            "Torque-rate limit on the applied torque (0: off)",
+            dynamic=True,
+            unit="N·m/s",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "republish_period",
+            0.5,
+            "Lockstep: send an unanswered state again after this wall time",
+            read_only=True,
+            unit="s",
+            **POSITIVE,
+        ),
+        params.ParamSpec(
+            "start_paused", False, "Start paused (call ~/resume to run)", read_only=True
+        ),
+        params.ParamSpec(
+            "pause_at",
+            0.0,
+            "Lockstep: pause once the state at this simulation time is published "
+            "(0: never); setting it again re-arms it",
+            unit="s",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
+        params.REJECT_FACTOR,
+        # -- imperfections (docs/plant.md), all off by default --
+        params.ParamSpec(
+            "encoder_counts",
+            0.0,
+            "Encoder counts per revolution: published positions rounded to 2π/counts (0: off)",
+            dynamic=True,
+            unit="counts/rev",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "position_noise",
+            0.0,
+            "σ of the Gaussian noise on the published positions, before quantization",
+            dynamic=True,
+            unit="rad",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "velocity_noise",
+            0.0,
+            "σ of the Gaussian noise on the published velocities",
+            dynamic=True,
+            unit="rad/s",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "noise_seed",
+            0,
+            "Seed of the measurement noise (numpy default_rng); setting it restarts the noise",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "measure_velocity",
+            True,
+            "false: joint_states carry no velocities (an empty velocity array)",
+            read_only=True,
+        ),
+        params.ParamSpec(
+            "coulomb_friction",
+            0.0,
+            "Plant Coulomb friction F_c (a velocity motor with target 0 and at most F_c)",
+            dynamic=True,
+            unit="N·m or N",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "static_friction",
+            0.0,
+            "Stiction F_s >= F_c, held below 1e-3 rad/s (0: same as coulomb_friction)",
+            dynamic=True,
+            unit="N·m or N",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "wrench_link",
+            "",
+            "Link of the scheduled wrench ('': the last controlled joint's child link)",
+        ),
+        params.ParamSpec(
+            "wrench_force",
+            [0.0, 0.0, 0.0],
+            "Scheduled force on the robot, world frame, at the link frame's origin (0: off)",
+            kind="numbers",
+            length=3,
+            unit="N",
+        ),
+        params.ParamSpec(
+            "wrench_torque",
+            [0.0, 0.0, 0.0],
+            "Scheduled torque on the robot, world frame (0 and a zero force: off)",
+            kind="numbers",
+            length=3,
+            unit="N·m",
+        ),
+        params.ParamSpec(
+            "wrench_profile", "step", "Scheduled wrench profile in time", choices=PROFILES
+        ),
+        params.ParamSpec(
+            "wrench_start",
+            0.0,
+            "Scheduled wrench: start time (simulation)",
+            unit="s",
+            **NONNEGATIVE,
+        ),
+        params.ParamSpec(
+            "wrench_duration", 0.0, "Scheduled wrench: length of a pulse", unit="s", **NONNEGATIVE
+        ),
+        params.ParamSpec(
+            "wrench_frequency",
+            0.0,
+            "Scheduled wrench: frequency of a sinusoid",
+            unit="Hz",
+            **NONNEGATIVE,
+        ),
+    )
 )
 
 
@@ -342,6 +354,8 @@ class SimBridge(Node):
         self._sent_at = array.array("q", [0] * SENT_HISTORY)
         self._latency_ns = -1  # realtime: of the newest command, for the next tick's row
         self.loop_stats = LoopStatistics()
+        self._polled_ns = 0  # realtime: time the physics thread spent polling the clock
+        self._polled_said = 0
         self._tick_sim_ns = self.period_ns if self.mode == "lockstep" else self.physics_dt_ns
 
         velocities = self.n if self._measure_velocity else 0
@@ -361,6 +375,12 @@ class SimBridge(Node):
         self._state_pub = self.create_publisher(JointState, "joint_states", CONTROL_PUBLISHER_QOS)
         self._clock_pub = self.create_publisher(Clock, "/clock", CONTROL_PUBLISHER_QOS)
         self.control_path = ControlPath(self)
+        # realtime: the physics thread and the command path are on time first (lockstep has
+        # no deadline and runs flat out: at FIFO priority it would starve the machine)
+        self.realtime = RealtimeThreads(self, v)
+        if self.mode == "realtime":
+            self.control_path.on_serve = lambda: self.realtime.configure("command path")
+            self.control_path.on_executor = self.realtime.configure_executor
         self.control_path.subscription(
             JointState, "effort_command", self._on_effort, COMMAND_QOS, raw=True, drain=True
         )
@@ -499,7 +519,18 @@ class SimBridge(Node):
             "braking": int(self.mode == "realtime" and self._braking),
             "owner": self._ownership.owner or "",
             **self.counts,
+            **self.realtime.diagnostics(),
+            **self._poll_fraction(summary),
         }
+
+    def _poll_fraction(self, summary: Mapping[str, float]) -> dict[str, float]:
+        """Realtime: the share of the window the physics thread polled the clock (a CPU it
+        keeps from normal threads at FIFO priority; pacing module docstring)."""
+        if self.mode != "realtime":
+            return {}
+        polled, self._polled_said = self._polled_ns - self._polled_said, self._polled_ns
+        seconds = summary["seconds"]
+        return {"pacing.poll_fraction": polled * 1e-9 / seconds if seconds > 0 else 0.0}
 
     def _alarm(self) -> str | None:
         if self._timed_out:
@@ -724,6 +755,8 @@ class SimBridge(Node):
         soon after as the machine allows; a tick more than 100 ms behind restarts the
         schedule instead of catching up)."""
         pacing.set_timer_slack(1)
+        fifo = self.realtime.configure("physics").policy == "SCHED_FIFO"
+        spin = pacing.SPIN_FIFO_NS if fifo else pacing.SPIN_NS
         dt = self.physics_dt_ns
         deadline = time.perf_counter_ns()
         k = 0
@@ -743,7 +776,7 @@ class SimBridge(Node):
             deadline += dt
             if end - deadline > MAX_BEHIND_NS:
                 deadline = end
-            pacing.sleep_until(deadline)
+            self._polled_ns += pacing.sleep_until(deadline, spin)
 
     def _physics_step(self) -> None:
         fresh = (

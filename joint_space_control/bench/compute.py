@@ -160,22 +160,29 @@ def in_process_loop(robot: str, law: str, steps: int) -> dict[str, Any]:
     }
 
 
-def pacing_floor(seconds: float, late_us: float = 200.0, too_late_us: float = 1000.0) -> dict:
+def pacing_floor(
+    seconds: float, priority: int = 0, late_us: float = 200.0, too_late_us: float = 1000.0
+) -> dict:
     """A Python thread paced at 1 kHz exactly as sim_bridge's realtime physics thread
-    (:func:`sim_bridge.pacing.sleep_until`), doing nothing else and without ROS: how well
-    this machine can hold 1 kHz at all."""
+    (:func:`sim_bridge.pacing.sleep_until`, at SCHED_FIFO ``priority`` when given and
+    permitted, with the same poll), doing nothing else and without ROS: how well this
+    machine can hold 1 kHz at all."""
     import threading
 
+    from joint_space_control import scheduling
     from sim_bridge import pacing
 
     n = max(1, round(seconds * 1000))
     lateness = np.zeros(n, dtype=np.int64)
+    got: list[scheduling.Scheduling] = []
 
     def run() -> None:
         pacing.set_timer_slack(1)
+        got.append(scheduling.configure_this_thread("floor", priority))
+        spin = pacing.SPIN_FIFO_NS if got[0].policy == "SCHED_FIFO" else pacing.SPIN_NS
         deadline = time.perf_counter_ns() + 1_000_000
         for k in range(n):
-            pacing.sleep_until(deadline)
+            pacing.sleep_until(deadline, spin)
             lateness[k] = time.perf_counter_ns() - deadline
             deadline += 1_000_000
 
@@ -186,6 +193,8 @@ def pacing_floor(seconds: float, late_us: float = 200.0, too_late_us: float = 10
     return {
         "seconds": seconds,
         "ticks": n,
+        "thread_priority": priority,
+        "policy": got[0].policy,
         "lateness": percentiles_us(lateness),
         "on_time_fraction": float(np.mean(late <= late_us)),
         "too_late_fraction": float(np.mean(late > too_late_us)),

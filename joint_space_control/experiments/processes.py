@@ -10,7 +10,7 @@ import os
 import signal
 import subprocess
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +48,9 @@ class NodeProcess:
         workdir: Path,
         env: Mapping[str, str],
         extra_args: list[str] | None = None,
+        prefix: Sequence[str] = (),
     ) -> None:
+        """``prefix``: a command that runs the node (``setpriv …``, ``taskset …``)."""
         if executable not in EXECUTABLES:
             raise ValueError(f"unknown executable '{executable}'")
         workdir.mkdir(parents=True, exist_ok=True)
@@ -58,6 +60,7 @@ class NodeProcess:
         self.log_path = workdir / f"{name}.log"
         self._log = open(self.log_path, "w")  # noqa: SIM115 - closed in stop()
         cmd = [
+            *prefix,
             sys.executable,
             "-m",
             EXECUTABLES[executable],
@@ -112,9 +115,10 @@ class ProcessGroup:
         params: Mapping[str, Any],
         name: str | None = None,
         extra_args: list[str] | None = None,
+        prefix: Sequence[str] = (),
     ) -> NodeProcess:
         name = name or executable
-        node = NodeProcess(executable, name, params, self.workdir, self.env, extra_args)
+        node = NodeProcess(executable, name, params, self.workdir, self.env, extra_args, prefix)
         self.nodes[name] = node
         return node
 

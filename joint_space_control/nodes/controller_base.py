@@ -69,6 +69,7 @@ from joint_space_control.laws.gains import DEFAULT_OMEGA_N, DEFAULT_ZETA, GainCh
 from joint_space_control.laws.limits import beyond_bound
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.ros import parameters as params
+from joint_space_control.ros import realtime_threads
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
 from joint_space_control.ros.loop_statistics import LoopStatistics
@@ -86,6 +87,7 @@ from joint_space_control.ros.messages import (
     trajectory_from_bytes,
 )
 from joint_space_control.ros.plant_mode import PlantModeWatcher
+from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.reference_worker import ReferenceBuilder
 from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
 from joint_space_control.trajectories.reference import Trajectory
@@ -102,113 +104,119 @@ COUNTERS = (
     "beyond_bound.torques",
 )
 
-COMMON_PARAMETERS = params.ROBOT_PARAMETERS + (
-    params.ParamSpec(
-        "rate",
-        1000.0,
-        "Control rate 1/T_s: the timer's with trigger=timer; with trigger=state a torque is "
-        "computed at the states on a 1/rate grid and held over the states in between",
-        read_only=True,
-        unit="Hz",
-        minimum=0.0,
-        exclusive=True,
-    ),
-    params.ParamSpec(
-        "trigger",
-        "auto",
-        "auto: follow the plant (the 'mode' parameter of the joint_states publisher: "
-        "lockstep -> state, anything else -> timer); timer: command at 'rate' from the "
-        "latest state; state: answer every joint state once (lockstep)",
-        read_only=True,
-        choices=TRIGGERS,
-    ),
-    params.ParamSpec(
-        "state_timeout",
-        0.1,
-        "Stop commanding when no joint state arrived for this long (wall time at receipt)",
-        unit="s",
-        minimum=0.0,
-        exclusive=True,
-    ),
-    params.ParamSpec(
-        "kp",
-        0.0,
-        "Proportional gain K_P; 0: not given (see omega_n), else > 0 on every joint",
-        dynamic=True,
-        unit="N·m/rad",
-        minimum=0.0,
-    ),
-    params.ParamSpec(
-        "kd",
-        0.0,
-        "Derivative gain K_D; only with kp > 0",
-        dynamic=True,
-        unit="N·m·s/rad",
-        minimum=0.0,
-    ),
-    params.ParamSpec(
-        "omega_n",
-        0.0,
-        "Natural frequency ω_n: gains from omega_n/zeta (over kp/kd); 0: not given (kp/kd "
-        f"if kp > 0, else ω_n = {DEFAULT_OMEGA_N:g} rad/s), else > 0 on every joint",
-        dynamic=True,
-        unit="rad/s",
-        minimum=0.0,
-    ),
-    params.ParamSpec(
-        "zeta",
-        DEFAULT_ZETA,
-        "Damping ratio ζ (with omega_n or the default)",
-        dynamic=True,
-        minimum=0.0,
-    ),
-    # The controller's own model (B̂, Ĉ, F̂, ĝ) can differ from the plant on purpose.
-    params.ParamSpec(
-        "model_mass_scale",
-        1.0,
-        "Controller model: factor on the mass and inertia of the link each joint moves",
-        dynamic=True,
-        minimum=0.0,
-        exclusive=True,
-    ),
-    params.ParamSpec(
-        "model_payload_mass",
-        0.0,
-        "Controller model: point mass at the last link's centre of mass",
-        unit="kg",
-        minimum=0.0,
-    ),
-    params.ParamSpec(
-        "model_friction",
-        0.0,
-        "Controller model: viscous friction F̂",
-        dynamic=True,
-        unit="N·m·s/rad",
-        minimum=0.0,
-    ),
-    params.ParamSpec("model_gravity", True, "Controller model: false models no gravity (ĝ ≡ 0)"),
-    params.REJECT_FACTOR,
-    params.ParamSpec(
-        "velocity_source",
-        VelocitySource.AUTO.value,
-        "q̇ used by the law and reported on ~/state: auto (measured when the state carries "
-        "a velocity, else filtered_difference) | measured (states without one are rejected) "
-        "| backward_difference | filtered_difference (from the positions' stamps)",
-        choices=tuple(source.value for source in VelocitySource),
-    ),
-    params.ParamSpec(
-        "velocity_cutoff",
-        DEFAULT_CUTOFF,
-        "Cutoff f_c of the filtered difference",
-        unit="Hz",
-        minimum=0.0,
-        exclusive=True,
-    ),
-    params.ParamSpec(
-        "reference_derivatives",
-        True,
-        "false: q̇_d = q̈_d = 0 whatever the reference (regulation form r = K_P q_d)",
-    ),
+COMMON_PARAMETERS = (
+    params.ROBOT_PARAMETERS
+    + realtime_threads.PARAMETERS
+    + (
+        params.ParamSpec(
+            "rate",
+            1000.0,
+            "Control rate 1/T_s: the timer's with trigger=timer; with trigger=state a torque is "
+            "computed at the states on a 1/rate grid and held over the states in between",
+            read_only=True,
+            unit="Hz",
+            minimum=0.0,
+            exclusive=True,
+        ),
+        params.ParamSpec(
+            "trigger",
+            "auto",
+            "auto: follow the plant (the 'mode' parameter of the joint_states publisher: "
+            "lockstep -> state, anything else -> timer); timer: command at 'rate' from the "
+            "latest state; state: answer every joint state once (lockstep)",
+            read_only=True,
+            choices=TRIGGERS,
+        ),
+        params.ParamSpec(
+            "state_timeout",
+            0.1,
+            "Stop commanding when no joint state arrived for this long (wall time at receipt)",
+            unit="s",
+            minimum=0.0,
+            exclusive=True,
+        ),
+        params.ParamSpec(
+            "kp",
+            0.0,
+            "Proportional gain K_P; 0: not given (see omega_n), else > 0 on every joint",
+            dynamic=True,
+            unit="N·m/rad",
+            minimum=0.0,
+        ),
+        params.ParamSpec(
+            "kd",
+            0.0,
+            "Derivative gain K_D; only with kp > 0",
+            dynamic=True,
+            unit="N·m·s/rad",
+            minimum=0.0,
+        ),
+        params.ParamSpec(
+            "omega_n",
+            0.0,
+            "Natural frequency ω_n: gains from omega_n/zeta (over kp/kd); 0: not given (kp/kd "
+            f"if kp > 0, else ω_n = {DEFAULT_OMEGA_N:g} rad/s), else > 0 on every joint",
+            dynamic=True,
+            unit="rad/s",
+            minimum=0.0,
+        ),
+        params.ParamSpec(
+            "zeta",
+            DEFAULT_ZETA,
+            "Damping ratio ζ (with omega_n or the default)",
+            dynamic=True,
+            minimum=0.0,
+        ),
+        # The controller's own model (B̂, Ĉ, F̂, ĝ) can differ from the plant on purpose.
+        params.ParamSpec(
+            "model_mass_scale",
+            1.0,
+            "Controller model: factor on the mass and inertia of the link each joint moves",
+            dynamic=True,
+            minimum=0.0,
+            exclusive=True,
+        ),
+        params.ParamSpec(
+            "model_payload_mass",
+            0.0,
+            "Controller model: point mass at the last link's centre of mass",
+            unit="kg",
+            minimum=0.0,
+        ),
+        params.ParamSpec(
+            "model_friction",
+            0.0,
+            "Controller model: viscous friction F̂",
+            dynamic=True,
+            unit="N·m·s/rad",
+            minimum=0.0,
+        ),
+        params.ParamSpec(
+            "model_gravity", True, "Controller model: false models no gravity (ĝ ≡ 0)"
+        ),
+        params.REJECT_FACTOR,
+        params.ParamSpec(
+            "velocity_source",
+            VelocitySource.AUTO.value,
+            "q̇ used by the law and reported on ~/state: auto (measured when the state carries "
+            "a velocity, else filtered_difference) | measured (states without one are rejected) "
+            "| backward_difference | filtered_difference (from the positions' stamps)",
+            choices=tuple(source.value for source in VelocitySource),
+        ),
+        params.ParamSpec(
+            "velocity_cutoff",
+            DEFAULT_CUTOFF,
+            "Cutoff f_c of the filtered difference",
+            unit="Hz",
+            minimum=0.0,
+            exclusive=True,
+        ),
+        params.ParamSpec(
+            "reference_derivatives",
+            True,
+            "false: q̇_d = q̈_d = 0 whatever the reference (regulation form r = K_P q_d)",
+        ),
+    )
 )
 MODEL_PARAMETERS = ("model_mass_scale", "model_payload_mass", "model_friction", "model_gravity")
 
@@ -320,6 +328,9 @@ class JointController(Node):
         self._config_pub = self.create_publisher(String, "~/config", CONFIG_QOS)
         self._publish_config(values)
         self.control_path = ControlPath(self)
+        self.realtime = RealtimeThreads(self, values)
+        self.control_path.on_serve = lambda: self.realtime.configure("control path")
+        self.control_path.on_executor = self.realtime.configure_executor
         # The reference subscription comes first, so that a reference and a joint state
         # that are both waiting are handled in that order (deterministic lockstep start).
         self.control_path.subscription(
@@ -419,6 +430,7 @@ class JointController(Node):
             "control_period": self._control_period(),
             "velocity": (self.core.velocity_used or self.core.sampling.velocity).value,
             **self.counts,
+            **self.realtime.diagnostics(),
         }
 
     def _control_period(self) -> float:

@@ -48,10 +48,12 @@ from rclpy.signals import SignalHandlerGuardCondition
 from rclpy.subscription import Subscription
 from rclpy.timer import Timer
 
+from joint_space_control.scheduling import name_this_thread
+
 #: Longest wait [ns] before the loop looks at the context again (a signal wakes it at once).
 _WAIT_NS = 200_000_000
 #: Python's GIL switch interval [s] in a process with a control path.
-SWITCH_INTERVAL = 0.0005
+SWITCH_INTERVAL = 0.0001
 
 
 class ControlPathGroup(CallbackGroup):
@@ -106,6 +108,11 @@ class ControlPath:
         self._guard = threading.Lock()
         self._serving = False
         self._close_pending = False
+        #: Called by :meth:`spin` in the serving thread before it serves (a node gives that
+        #: thread its realtime scheduling there: threads it starts later stay normal).
+        self.on_serve: Callable[[], None] | None = None
+        #: Called by :func:`spin_node` in the executor thread before it spins.
+        self.on_executor: Callable[[], None] | None = None
 
     def __bool__(self) -> bool:
         return bool(self._subscriptions or self._timer)
@@ -174,6 +181,8 @@ class ControlPath:
     def spin(self) -> None:
         """Serve the control path until the context shuts down (Ctrl-C, SIGTERM) or
         :meth:`stop`. Exceptions of the callbacks propagate."""
+        if self.on_serve is not None:
+            self.on_serve()
         try:
             self._serve(_Mode())
         finally:
@@ -322,7 +331,9 @@ def spin_node(node: Node, control_path: ControlPath | None) -> None:
         executor.spin()
         return
     # A thread that wants the GIL asks its holder to let go after this long (default 5 ms):
-    # the control path must not wait milliseconds behind the executor thread's work.
+    # the control path must not wait milliseconds behind the executor thread's work. 0.1 ms
+    # rather than 0.5: each executor wake-up (~0.6 ms of Python) then delays a realtime tick
+    # by ~0.1 ms, within the 200 µs a tick may be late (docs/performance.md, Thread priority).
     sys.setswitchinterval(SWITCH_INTERVAL)
     # Everything built so far (modules, the model, the node) lives as long as the process:
     # out of the garbage collector's sight, a full collection takes microseconds instead of
@@ -332,6 +343,9 @@ def spin_node(node: Node, control_path: ControlPath | None) -> None:
     failure: list[BaseException] = []
 
     def spin_rest() -> None:
+        name_this_thread("jsc-executor")
+        if control_path.on_executor is not None:
+            control_path.on_executor()
         try:
             executor.spin()
         except ExternalShutdownException:

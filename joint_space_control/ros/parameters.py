@@ -43,6 +43,7 @@ class ParamSpec:
     choices: tuple[str, ...] = ()
     kind: str = ""
     length: int = 0
+    empty_ok: bool = False  # a list of numbers that may be empty (checked as an empty array)
 
     @property
     def type(self) -> str:
@@ -106,6 +107,8 @@ class ParamSpec:
             if not np.isfinite(value):
                 raise ValueError(f"'{name}' must be finite")
             return float(value)
+        if self.empty_ok and isinstance(value, list | tuple) and not value:
+            return np.array([])
         items = numbers({name: value}, name)
         if self.length and len(items) != self.length:
             raise ValueError(f"'{name}' must have {self.length} values, got {len(items)}")

@@ -68,6 +68,7 @@ def test_a_second_commander_is_refused_counted_and_never_applied(rig: Rig, mode)
     q = np.array(probe.recording.positions[start:])
     assert len(q) > 100  # the loop ran meanwhile
     moved = float(np.max(np.abs(q - np.array(Q0))))
+    print(f"{mode}: {len(q)} states, moved {moved:.2e} rad, {FOREIGN} foreign commands counted")
     assert moved < 0.01, moved
     log = rig.group.nodes["sim_bridge"].log()
     assert "rejected a command from '/intruder'" in log and "Traceback" not in log
