@@ -1,4 +1,4 @@
-"""``sim_bridge``: the PyBullet plant as a ROS 2 node.
+"""``sim_bridge``: the PyBullet plant as a ROS 2 node: one world, one or several robots.
 
 Publishes ``joint_states`` (position, velocity, and the motor torque applied during the last
 step) and ``/clock``; applies effort commands from ``effort_command`` (JointState, joints by
@@ -29,6 +29,14 @@ graph, or ``~/release`` is called. Every command received is judged (a drained q
 Services: ``~/reset`` (initial configuration, at rest; time keeps running forward),
 ``~/pause``, ``~/resume`` and ``~/release`` (std_srvs/Trigger).
 
+Several robots in one world (``robots``; :mod:`sim_bridge.parameters`,
+:mod:`sim_bridge.robot`): one PyBullet client, one ``/clock``, one physics rate and one mode;
+each robot has its topics in its namespace (``<ns>/joint_states``, ``<ns>/effort_command``,
+``<ns>/sim_bridge/commands``, ``.../wrench``, ``.../release``), its own commander and brakes.
+In lockstep the world steps when every robot has the command for the current state; a robot
+without an answer is named in the stall warning. ``/clock`` has one publisher per graph: a
+``sim_bridge`` that finds another one at start refuses to start.
+
 Imperfections, all off by default (docs/plant.md): the published positions and velocities
 can be quantized and noisy (:mod:`sim_bridge.sensors`; one measurement per simulation
 instant, so a state sent again carries the same numbers), the velocities left out
@@ -53,8 +61,6 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
-import numpy as np
-from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
@@ -65,37 +71,27 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from joint_space_control.laws.limits import beyond_bound
 from joint_space_control.ros import parameters as params
-from joint_space_control.ros import realtime_threads
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
 from joint_space_control.ros.loop_statistics import LoopStatistics
-from joint_space_control.ros.messages import (
-    COMMAND_QOS,
-    CONTROL_PUBLISHER_QOS,
-    JointOrder,
-    effort_arrays,
-    float_array,
-)
+from joint_space_control.ros.messages import COMMAND_QOS, CONTROL_PUBLISHER_QOS
 from joint_space_control.ros.node_main import run_node
 from joint_space_control.ros.realtime_threads import RealtimeThreads
-from joint_space_control.ros.wire import JointStateImage, JointStateReader
 from sim_bridge import pacing
-from sim_bridge.ownership import ARRAY_COMMANDER, CommandOwnership
-from sim_bridge.plant import Plant, coulomb_bounds
-from sim_bridge.sensors import Encoder
-from sim_bridge.wrench import PROFILES, WrenchSchedule
-
-MODES = ("realtime", "lockstep")
-#: The safety counters of the plant (on /diagnostics; docs/safety.md).
-COUNTERS = (
-    "rejected.commands",
-    "rejected.foreign_commands",
-    "rejected.wrenches",
-    "brake.engaged",
+from sim_bridge.ownership import ARRAY_COMMANDER
+from sim_bridge.parameters import (
+    MODES,  # noqa: F401  (re-exported: the modes of the node)
+    PARAMETERS,
+    ROBOT_OWN,
+    prefixed,
+    robot_names,
+    robot_values,
 )
-#: How often [s] the graph is checked for an owner that left.
+from sim_bridge.plant import World
+from sim_bridge.robot import COUNTERS, SimRobot  # noqa: F401  (COUNTERS: re-exported)
+
+#: How often [s] the graph is checked for an owner that left (and for another /clock).
 OWNER_CHECK = 0.25
 #: Recent states whose publication time is kept for the command latency (realtime).
 SENT_HISTORY = 64
@@ -106,197 +102,29 @@ MAX_BEHIND_NS = 100_000_000
 STALL_WARNING = 0.75
 #: ... and again every this long [s] while it stays unanswered.
 STALL_REPEAT = 10.0
-
-POSITIVE = {"minimum": 0.0, "exclusive": True}
-NONNEGATIVE = {"minimum": 0.0}
-
-PARAMETERS = (
-    params.ROBOT_PARAMETERS
-    + realtime_threads.PARAMETERS
-    + (
-        params.ParamSpec("mode", "realtime", "Plant timing", read_only=True, choices=MODES),
-        params.ParamSpec(
-            "physics_rate",
-            1000.0,
-            "Physics step rate, a multiple of publish_rate",
-            read_only=True,
-            unit="Hz",
-            **POSITIVE,
-        ),
-        params.ParamSpec(
-            "publish_rate",
-            1000.0,
-            "Joint state rate (= command period in lockstep)",
-            read_only=True,
-            unit="Hz",
-            **POSITIVE,
-        ),
-        params.ParamSpec(
-            "initial_positions",
-            0.0,
-            "Initial joint positions (clipped into the joint limits)",
-            read_only=True,
-            dynamic=True,
-            unit="rad",
-        ),
-        params.ParamSpec(
-            "viscous_friction",
-            0.0,
-            "Plant viscous friction F (the URDF's joint damping is not applied)",
-            dynamic=True,
-            unit="N·m·s/rad",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "payload_mass",
-            0.0,
-            "Point mass at the centre of mass of the last joint's link (plant only)",
-            unit="kg",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "command_timeout",
-            0.1,
-            "Realtime: brake when no valid command for this long",
-            unit="s",
-            **POSITIVE,
-        ),
-        params.ParamSpec(
-            "max_torque_rate",
-            0.0,
-            "Torque-rate limit on the applied torque (0: off)",
-            dynamic=True,
-            unit="N·m/s",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "republish_period",
-            0.5,
-            "Lockstep: send an unanswered state again after this wall time",
-            read_only=True,
-            unit="s",
-            **POSITIVE,
-        ),
-        params.ParamSpec(
-            "start_paused", False, "Start paused (call ~/resume to run)", read_only=True
-        ),
-        params.ParamSpec(
-            "pause_at",
-            0.0,
-            "Lockstep: pause once the state at this simulation time is published "
-            "(0: never); setting it again re-arms it",
-            unit="s",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
-        params.REJECT_FACTOR,
-        # -- imperfections (docs/plant.md), all off by default --
-        params.ParamSpec(
-            "encoder_counts",
-            0.0,
-            "Encoder counts per revolution: published positions rounded to 2π/counts (0: off)",
-            dynamic=True,
-            unit="counts/rev",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "position_noise",
-            0.0,
-            "σ of the Gaussian noise on the published positions, before quantization",
-            dynamic=True,
-            unit="rad",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "velocity_noise",
-            0.0,
-            "σ of the Gaussian noise on the published velocities",
-            dynamic=True,
-            unit="rad/s",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "noise_seed",
-            0,
-            "Seed of the measurement noise (numpy default_rng); setting it restarts the noise",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "measure_velocity",
-            True,
-            "false: joint_states carry no velocities (an empty velocity array)",
-            read_only=True,
-        ),
-        params.ParamSpec(
-            "coulomb_friction",
-            0.0,
-            "Plant Coulomb friction F_c (a velocity motor with target 0 and at most F_c)",
-            dynamic=True,
-            unit="N·m or N",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "static_friction",
-            0.0,
-            "Stiction F_s >= F_c, held below 1e-3 rad/s (0: same as coulomb_friction)",
-            dynamic=True,
-            unit="N·m or N",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "wrench_link",
-            "",
-            "Link of the scheduled wrench ('': the last controlled joint's child link)",
-        ),
-        params.ParamSpec(
-            "wrench_force",
-            [0.0, 0.0, 0.0],
-            "Scheduled force on the robot, world frame, at the link frame's origin (0: off)",
-            kind="numbers",
-            length=3,
-            unit="N",
-        ),
-        params.ParamSpec(
-            "wrench_torque",
-            [0.0, 0.0, 0.0],
-            "Scheduled torque on the robot, world frame (0 and a zero force: off)",
-            kind="numbers",
-            length=3,
-            unit="N·m",
-        ),
-        params.ParamSpec(
-            "wrench_profile", "step", "Scheduled wrench profile in time", choices=PROFILES
-        ),
-        params.ParamSpec(
-            "wrench_start",
-            0.0,
-            "Scheduled wrench: start time (simulation)",
-            unit="s",
-            **NONNEGATIVE,
-        ),
-        params.ParamSpec(
-            "wrench_duration", 0.0, "Scheduled wrench: length of a pulse", unit="s", **NONNEGATIVE
-        ),
-        params.ParamSpec(
-            "wrench_frequency",
-            0.0,
-            "Scheduled wrench: frequency of a sinusoid",
-            unit="Hz",
-            **NONNEGATIVE,
-        ),
-    )
-)
+#: At start, how long [s] discovery is given (from the node's creation) to show another
+#: publisher of /clock before this one publishes its own.
+CLOCK_DISCOVERY = 0.5
 
 
 class SimBridge(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("sim_bridge", **kwargs)
-        params.declare(self, PARAMETERS)
-        v = params.current_values(self, PARAMETERS)
-        model = params.robot_model(v, node=self)
-        spec = model.spec
-        self.joints = model.joint_names
-        self.n = len(self.joints)
+        created = time.monotonic()
+        overrides = getattr(self, "_parameter_overrides", {})
+        given = overrides.get("robots")
+        names = robot_names(given.value if given is not None else [])
+        specs = PARAMETERS + tuple(spec for name in names for spec in prefixed(name))
+        self._specs = specs
+        params.declare(self, specs)
+        v = params.current_values(self, specs)
+        if names:
+            ignored = sorted({spec.name for spec in ROBOT_OWN} & set(overrides))
+            if ignored:
+                self.get_logger().warning(
+                    f"ignored top-level {', '.join(ignored)}: with 'robots' each robot's "
+                    "parameters are <name>.<parameter>"
+                )
         self.mode = params.value(v, "mode")
         physics_rate = params.value(v, "physics_rate")
         publish_rate = params.value(v, "publish_rate")
@@ -309,46 +137,28 @@ class SimBridge(Node):
         self.command_timeout = params.value(v, "command_timeout")
         self.reject_factor = params.value(v, "reject_factor")
         republish = params.value(v, "republish_period")
-        self.plant = Plant(
-            spec,
-            self.joints,
-            physics_rate,
-            friction=params.value(v, "viscous_friction", self.n),
-            payload_mass=params.value(v, "payload_mass"),
-            initial_positions=self._initial_positions(v, model),
-            locked_positions=model.locked_positions,
-            effort_limits=model.effort_limits,
-            gui=bool(v["gui"]),
-        )
-        self.plant.set_torque_rate_limit(params.value(v, "max_torque_rate", self.n))
-        for warning in self.plant.warnings:
-            self.get_logger().warning(warning)
+        self.lock = threading.Lock()  # world and time, shared with the realtime thread
+        self.world = World(physics_rate, gui=bool(v["gui"]))
+        self.robots: list[SimRobot] = []
         try:
-            self.plant.set_coulomb_friction(*self._coulomb(v))
-            self.plant.set_wrench_schedule(self._schedule(v))
-        except ValueError:
-            self.plant.close()
+            for name in names or ("",):
+                self.robots.append(SimRobot(self, name, robot_values(v, name), self.world))
+        except Exception:
+            self.world.close()
             raise
-        self.encoder = Encoder(self.n, *self._encoder(v), seed=self._seed(v))
-        self._measure_velocity = bool(v["measure_velocity"])
+        self._refuse_second_clock(created)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
-        self._lock = threading.Lock()  # plant and time, shared with the realtime thread
-        self._order = JointOrder(self.joints)
         self._t_ns = 0
-        self._tau: np.ndarray | None = None  # newest valid command (realtime)
-        self._tau_t_ns = 0
         self._awaiting: int | None = None  # lockstep: stamp of the state waiting for answer
         self._sent_wall = 0.0
         self._awaiting_since = 0.0  # when the awaited state was first published (monotonic)
         self._stall_warned = 0.0  # when the stall was last reported (monotonic; 0: not yet)
-        self._stall_nodes: tuple[str, ...] = ()  # the commanders named then
+        self._stall_said: tuple[str, ...] = ()  # what was named then
         self._paused = bool(v["start_paused"])
         self._pause_at_ns = self._pause_time(v)
-        self._braking = True
-        self._timed_out = False  # braking because commands stopped (not before the first)
-        self.counts = dict.fromkeys(COUNTERS, 0)
         self._running = True
+        self._clock_said = False
         # Command latency: when each recent state was published (perf_counter ns).
         self._sent_stamp = array.array("q", [-1] * SENT_HISTORY)
         self._sent_at = array.array("q", [0] * SENT_HISTORY)
@@ -357,22 +167,7 @@ class SimBridge(Node):
         self._polled_ns = 0  # realtime: time the physics thread spent polling the clock
         self._polled_said = 0
         self._tick_sim_ns = self.period_ns if self.mode == "lockstep" else self.physics_dt_ns
-
-        velocities = self.n if self._measure_velocity else 0
-        self._state_image = JointStateImage(self.joints, (self.n, velocities, self.n))
-        self._q, self._dq = np.zeros(self.n), np.zeros(self.n)  # true state, when measured
-        # The true state beside the measurement (imperfect measurement only): analysis of
-        # noise experiments (the true error, the true final positions).
-        self._true_image = JointStateImage(self.joints)
-        self._true_pub = self.create_publisher(
-            JointState, "~/true_joint_states", CONTROL_PUBLISHER_QOS
-        )
-        self._measured_ns: int | None = None  # time of the state in the image
         self._clock_msg = Clock()
-        self._effort_reader = JointStateReader(
-            self._order, (2,), lambda m: (effort_arrays(m, self._order),), allow_extra=False
-        )
-        self._state_pub = self.create_publisher(JointState, "joint_states", CONTROL_PUBLISHER_QOS)
         self._clock_pub = self.create_publisher(Clock, "/clock", CONTROL_PUBLISHER_QOS)
         self.control_path = ControlPath(self)
         # realtime: the physics thread and the command path are on time first (lockstep has
@@ -381,23 +176,36 @@ class SimBridge(Node):
         if self.mode == "realtime":
             self.control_path.on_serve = lambda: self.realtime.configure("command path")
             self.control_path.on_executor = self.realtime.configure_executor
-        self.control_path.subscription(
-            JointState, "effort_command", self._on_effort, COMMAND_QOS, raw=True, drain=True
-        )
-        self.control_path.subscription(
-            Float64MultiArray, "~/commands", self._on_array, COMMAND_QOS, drain=True
-        )
+        for robot in self.robots:
+            self.control_path.subscription(
+                JointState,
+                robot.topics["effort_command"],
+                lambda raw, info, r=robot: self._on_effort(r, raw),
+                COMMAND_QOS,
+                raw=True,
+                drain=True,
+            )
+            self.control_path.subscription(
+                Float64MultiArray,
+                robot.topics["commands"],
+                lambda msg, info, r=robot: self._on_array(r, msg),
+                COMMAND_QOS,
+                drain=True,
+            )
+            self.create_service(
+                Trigger,
+                robot.private + "release",
+                lambda request, response, r=robot: self._on_release(r, response),
+            )
+        hardware = ", ".join(robot.spec.name for robot in self.robots)
         self._diagnostics = LoopDiagnostics(
-            self, self.loop_stats, spec.name, self._diagnostic_values, self._alarm
+            self, self.loop_stats, hardware, self._diagnostic_values, self._alarm
         )
-        self.create_subscription(WrenchStamped, "~/wrench", self._on_wrench, 10)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(Trigger, "~/pause", self._on_pause)
         self.create_service(Trigger, "~/resume", self._on_resume)
-        self.create_service(Trigger, "~/release", self._on_release)
-        self._ownership = CommandOwnership()
         self.create_timer(
-            OWNER_CHECK, self._check_owner, clock=RosClock(clock_type=ClockType.STEADY_TIME)
+            OWNER_CHECK, self._check_graph, clock=RosClock(clock_type=ClockType.STEADY_TIME)
         )
 
         if self.mode == "lockstep":
@@ -414,114 +222,91 @@ class SimBridge(Node):
         else:
             self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
             self._thread.start()
-        self.get_logger().info(
-            f"sim_bridge: {spec.name} {list(self.joints)}, {self.mode}, physics "
-            f"{physics_rate:g} Hz, publish {publish_rate:g} Hz"
-            + (", paused" if self._paused else "")
+        robots = "; ".join(
+            (f"{r.name}: " if r.name else "") + f"{r.spec.name} {list(r.joints)}"
+            for r in self.robots
         )
+        self.get_logger().info(
+            f"sim_bridge: {robots}, {self.mode}, physics {physics_rate:g} Hz, publish "
+            f"{publish_rate:g} Hz" + (", paused" if self._paused else "")
+        )
+
+    # -- one clock per graph -----------------------------------------------------------
+    def _clock_publishers(self) -> list[str]:
+        """The nodes other than this one that publish /clock."""
+        me = self.get_fully_qualified_name()
+        return sorted(
+            {
+                f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+                for i in self.get_publishers_info_by_topic("/clock")
+            }
+            - {me}
+        )
+
+    def _refuse_second_clock(self, created: float) -> None:
+        """Another node publishing /clock in this domain (a second simulator): refuse to
+        start (ValueError: one line, exit code 2). Discovery had the model loading to find
+        it, and at least CLOCK_DISCOVERY seconds."""
+        time.sleep(max(0.0, CLOCK_DISCOVERY - (time.monotonic() - created)))
+        others = self._clock_publishers()
+        if others:
+            self.world.close()
+            raise ValueError(
+                f"{', '.join(others)} already publish(es) /clock in this ROS domain: two "
+                "clocks would make every use_sim_time node jump between two simulations. "
+                "Put every robot in one world instead (one sim_bridge with 'robots': "
+                "docs/robots.md, Several robots; example config/two_robots.yaml) or run "
+                "the second simulation in another ROS_DOMAIN_ID"
+            )
 
     # -- parameters --------------------------------------------------------------------
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        values = params.with_changes(self, PARAMETERS, changes)
+        values = params.with_changes(self, self._specs, changes)
+        changed = {p.name for p in changes}
         try:
-            friction = params.value(values, "viscous_friction", self.n)
-            payload = params.value(values, "payload_mass")
             timeout = params.value(values, "command_timeout")
             reject_factor = params.value(values, "reject_factor")
             pause_at = self._pause_time(values)
-            max_rate = params.value(values, "max_torque_rate", self.n)
-            coulomb = self._coulomb(values)
-            schedule = self._schedule(values)
-            encoder = self._encoder(values)
-            seed = self._seed(values)
+            updates = []
+            for robot in self.robots:
+                key = f"{robot.name}." if robot.name else ""
+                own = {name[len(key) :] for name in changed if name.startswith(key)}
+                if own & {spec.name for spec in ROBOT_OWN}:
+                    updates.append(robot.update(robot_values(values, robot.name), own))
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))
-        with self._lock:
-            self.plant.set_friction(friction)
-            self.plant.set_torque_rate_limit(max_rate)
-            if payload != self.plant.payload_mass:
-                self.plant.set_payload(payload)
+        with self.lock:
+            for apply in updates:
+                apply()
             self.command_timeout = timeout
             self.reject_factor = reject_factor
-            if coulomb != (tuple(self.plant.coulomb), tuple(self.plant.static)):
-                self.plant.set_coulomb_friction(*coulomb)
-            self.plant.set_wrench_schedule(schedule)
-            self.encoder.configure(*encoder)
-            if any(p.name == "noise_seed" for p in changes):
-                self.encoder.reseed(seed)
-            if any(p.name == "pause_at" for p in changes):
+            if "pause_at" in changed:
                 self._pause_at_ns = pause_at
         return SetParametersResult(successful=True)
 
-    def _coulomb(self, values: dict[str, Any]) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """(F_c, F_s) per joint, checked (F_s = F_c where ``static_friction`` is 0)."""
-        fc, fs = coulomb_bounds(
-            params.value(values, "coulomb_friction", self.n),
-            params.value(values, "static_friction", self.n),
-        )
-        return tuple(fc), tuple(fs)
-
-    def _schedule(self, values: dict[str, Any]) -> WrenchSchedule:
-        """The scheduled wrench; its link must be one of the plant's."""
-        schedule = WrenchSchedule(
-            params.value(values, "wrench_force"),
-            params.value(values, "wrench_torque"),
-            params.value(values, "wrench_profile"),
-            params.value(values, "wrench_start"),
-            params.value(values, "wrench_duration"),
-            params.value(values, "wrench_frequency"),
-            link=params.value(values, "wrench_link"),
-        )
-        try:
-            self.plant.link_index(schedule.link)
-        except ValueError as err:
-            raise ValueError(f"'wrench_link': {err}") from None
-        return schedule
-
-    def _encoder(self, values: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return (
-            params.value(values, "encoder_counts", self.n),
-            params.value(values, "position_noise", self.n),
-            params.value(values, "velocity_noise", self.n),
-        )
-
     @staticmethod
-    def _seed(values: dict[str, Any]) -> int:
-        seed = params.value(values, "noise_seed")
-        if seed != int(seed):
-            raise ValueError(f"'noise_seed' must be an integer, got {seed}")
-        return int(seed)
-
-    def _initial_positions(self, values: dict[str, Any], model: Any) -> np.ndarray:
-        """``initial_positions``, clipped into the joint limits (with a log line when it
-        had to be: a zero configuration can lie outside them, Panda joint 4 say)."""
-        q0 = params.value(values, "initial_positions", self.n)
-        clipped, outside = model.clip_into_limits(q0)
-        if outside:
-            self.get_logger().warning(
-                f"initial positions of {outside} are outside their joint limits: clipped "
-                f"into them, starting at {clipped.tolist()}"
-            )
-        return clipped
-
-    @staticmethod
-    def _pause_time(values: dict[str, Any]) -> int | None:
+    def _pause_time(values: Mapping[str, Any]) -> int | None:
         """``pause_at`` in ns, or None when off (0)."""
         value = params.value(values, "pause_at")
         return round(value * 1e9) if value > 0 else None
 
+    # -- diagnostics -------------------------------------------------------------------
     def _diagnostic_values(self, summary: Mapping[str, float]) -> dict[str, Any]:
-        return {
+        realtime = self.mode == "realtime"
+        values: dict[str, Any] = {
             "mode": self.mode,
             "sim_time_s": self._t_ns * 1e-9,
             "real_time_factor": summary["rate_hz"] * self._tick_sim_ns * 1e-9,
-            "braking": int(self.mode == "realtime" and self._braking),
-            "owner": self._ownership.owner or "",
-            **self.counts,
-            **self.realtime.diagnostics(),
-            **self._poll_fraction(summary),
         }
+        if len(self.robots) > 1:
+            values["robots"] = ", ".join(robot.name for robot in self.robots)
+            values["braking"] = int(realtime and any(r.braking for r in self.robots))
+        for robot in self.robots:
+            values.update(robot.diagnostics(realtime))
+        values.update(self.realtime.diagnostics())
+        values.update(self._poll_fraction(summary))
+        return values
 
     def _poll_fraction(self, summary: Mapping[str, float]) -> dict[str, float]:
         """Realtime: the share of the window the physics thread polled the clock (a CPU it
@@ -533,28 +318,12 @@ class SimBridge(Node):
         return {"pacing.poll_fraction": polled * 1e-9 / seconds if seconds > 0 else 0.0}
 
     def _alarm(self) -> str | None:
-        if self._timed_out:
-            return f"no valid command for {self.command_timeout} s: brakes engaged"
-        return None
+        alarms = [a for r in self.robots if (a := r.alarm(self.command_timeout))]
+        return "; ".join(alarms) or None
 
     # -- publishing --------------------------------------------------------------------
     def _publish_state(self) -> None:
-        """Publish /clock and the joint state at the current time (with the lock held)."""
-        image = self._state_image
-        exact = self.encoder.exact and self._measure_velocity
-        if self._measured_ns != self._t_ns:  # a new state: measured once
-            if exact:
-                self.plant.read_state(image.position, image.velocity, image.effort)
-            else:
-                self.plant.read_state(self._q, self._dq, image.effort)
-                self.encoder.measure(self._q, self._dq, image.position, image.velocity)
-            self._measured_ns = self._t_ns
-        image.set_stamp(self._t_ns)
-        if not exact and self._true_pub.get_subscription_count():
-            truth = self._true_image
-            truth.position[:], truth.velocity[:], truth.effort[:] = self._q, self._dq, image.effort
-            truth.set_stamp(self._t_ns)
-            self._true_pub.publish(truth.to_bytes())
+        """Publish /clock and every robot's joint state at the current time (lock held)."""
         if self._clock_pub.get_subscription_count():  # volatile: nobody listening, no loss
             clock = self._clock_msg.clock
             clock.sec, clock.nanosec = divmod(self._t_ns, 1_000_000_000)
@@ -567,7 +336,8 @@ class SimBridge(Node):
         slot = (self._t_ns // self.period_ns) % SENT_HISTORY
         self._sent_stamp[slot] = self._t_ns
         self._sent_at[slot] = time.perf_counter_ns()
-        self._state_pub.publish(image.to_bytes())
+        for robot in self.robots:
+            robot.publish_state(self._t_ns)
         if self.mode == "lockstep" and self._pause_at_ns is not None:
             if self._t_ns >= self._pause_at_ns:
                 # Paused with this state out: its answer is ignored; ~/resume sends the
@@ -575,53 +345,68 @@ class SimBridge(Node):
                 self._paused, self._pause_at_ns = True, None
 
     def _publish_first_state(self) -> None:
-        with self._lock:
+        with self.lock:
             if not self._paused and self._awaiting is None:
                 self._publish_state()
 
     def _republish(self, after: float) -> None:
-        with self._lock:
+        with self.lock:
             if self._awaiting is not None and not self._paused:
                 if time.monotonic() - self._sent_wall > after:
                     self._publish_state()
 
     def _check_stall(self) -> None:
-        """Lockstep: report a state that stays unanswered while a controller is connected."""
-        with self._lock:
+        """Lockstep: report a state that stays unanswered while a controller is connected,
+        naming the robots whose answer is missing."""
+        with self.lock:
             waiting = self._awaiting is not None and not self._paused
             since, t_ns = self._awaiting_since, self._t_ns
+            missing = [r for r in self.robots if r.answer is None]
         now = time.monotonic()
         if not waiting or now - since < STALL_WARNING:
             self._stall_warned = 0.0
             return
-        commanders = self.get_publishers_info_by_topic(self.resolve_topic_name("effort_command"))
-        listeners = self.get_subscriptions_info_by_topic(self.resolve_topic_name("joint_states"))
-        if not commanders and not listeners:
-            return
-        names = tuple(
-            sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in commanders})
-        )
+        lines, said = [], []
+        for robot in missing:
+            commanders = self.get_publishers_info_by_topic(robot.topics["effort_command"])
+            listeners = self.get_subscriptions_info_by_topic(robot.topics["joint_states"])
+            if not commanders and not listeners and len(self.robots) == 1:
+                return  # nobody around: nothing to say
+            names = tuple(
+                sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in commanders})
+            )
+            said.append(f"{robot.name}:{','.join(names)}")
+            who = f"{robot.name}: " if robot.name else ""
+            if commanders:
+                lines.append(
+                    f"{who}{', '.join(names)} publish(es) {robot.topics['effort_command']}: "
+                    "likely a controller with trigger: timer and use_sim_time:=true, which "
+                    "waits for /clock, which a lockstep plant advances only on commands (use "
+                    "trigger:=state or auto), or one that stamps its commands with another "
+                    "time than the state's (header.stamp must be the state's stamp)"
+                )
+            elif listeners:
+                subscribers = sorted(
+                    {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in listeners}
+                )
+                lines.append(
+                    f"{who}{', '.join(subscribers)} subscribe(s) {robot.topics['joint_states']} "
+                    f"but nobody publishes {robot.topics['effort_command']} (a controller "
+                    "that failed to start, or one remapped to another command topic?)"
+                )
+            else:
+                lines.append(
+                    f"{who}no controller: nobody publishes {robot.topics['effort_command']} "
+                    "(in lockstep the world steps when every robot has answered)"
+                )
         # again after STALL_REPEAT, or at once when other commanders are connected
-        if self._stall_warned and names == self._stall_nodes:
+        said = tuple(said)
+        if self._stall_warned and said == self._stall_said:
             if now - self._stall_warned < STALL_REPEAT:
                 return
-        self._stall_warned, self._stall_nodes = now, names
+        self._stall_warned, self._stall_said = now, said
         waited = f"the state at t={t_ns * 1e-9:.3f} s is unanswered for {now - since:.1f} s"
-        if commanders:
-            self.get_logger().warning(
-                f"lockstep: {waited} while {', '.join(names)} publish(es) effort_command: "
-                "likely a controller with trigger: timer and use_sim_time:=true, which waits "
-                "for /clock, which a lockstep plant advances only on commands (use "
-                "trigger:=state or auto), or one that stamps its commands with another time "
-                "than the state's (header.stamp must be the state's stamp)"
-            )
-        else:
-            names = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in listeners})
-            self.get_logger().warning(
-                f"lockstep: {waited}; {', '.join(names)} subscribe(s) joint_states but nobody "
-                "publishes effort_command (a controller that failed to start, or one "
-                "remapped to another command topic?)"
-            )
+        self.get_logger().warning(f"lockstep: {waited}; " + "; ".join(lines))
 
     def _latency(self, stamp_ns: int, received: int) -> int:
         """From publishing the state stamped ``stamp_ns`` to ``received`` [ns]; -1 when that
@@ -632,53 +417,30 @@ class SimBridge(Node):
         return received - self._sent_at[slot]
 
     # -- commands ----------------------------------------------------------------------
-    def _on_effort(self, raw: bytes, info: Any) -> None:
+    def _on_effort(self, robot: SimRobot, raw: bytes) -> None:
         received = time.perf_counter_ns()
-        try:
-            stamp, (tau,) = self._effort_reader.read(raw)
-        except ValueError as err:
-            self.counts["rejected.commands"] += 1
-            self.get_logger().warning(f"rejected effort command: {err}", throttle_duration_sec=1.0)
-            return
-        if self._absurd(tau):
-            return
-        self._command(tau, stamp, received, self._effort_reader.frame_id)
+        command = robot.read_effort(raw)
+        if command is not None:
+            stamp, tau = command
+            self._command(robot, tau, stamp, received, robot.effort_reader.frame_id)
 
-    def _on_array(self, msg: Float64MultiArray, info: Any) -> None:
+    def _on_array(self, robot: SimRobot, msg: Float64MultiArray) -> None:
         received = time.perf_counter_ns()
-        try:
-            tau = float_array(msg, self.n)
-        except ValueError as err:
-            self.counts["rejected.commands"] += 1
-            self.get_logger().warning(f"rejected command array: {err}", throttle_duration_sec=1.0)
-            return
-        if self._absurd(tau):
-            return
-        self._command(tau, None, received, ARRAY_COMMANDER)
+        tau = robot.read_array(msg)
+        if tau is not None:
+            self._command(robot, tau, None, received, ARRAY_COMMANDER)
 
-    def _absurd(self, tau: np.ndarray) -> bool:
-        """A command beyond ``reject_factor`` × the effort limits: rejected and counted (its
-        sender is broken; clamping would apply the limit as if it meant it)."""
-        if not beyond_bound(tau, self.plant.effort_limits, self.reject_factor):
-            return False
-        self.counts["rejected.commands"] += 1
-        self.get_logger().warning(
-            f"rejected command {tau.tolist()}: beyond {self.reject_factor:g} × the effort "
-            f"limits {self.plant.effort_limits.tolist()} (reject_factor)",
-            throttle_duration_sec=1.0,
-        )
-        return True
-
-    def _command(self, tau: np.ndarray, stamp_ns: int | None, received: int, sender: str) -> None:
-        with self._lock:
+    def _command(
+        self, robot: SimRobot, tau: Any, stamp_ns: int | None, received: int, sender: str
+    ) -> None:
+        with self.lock:
             # one commander at a time: its silence is measured on simulation time in
             # realtime (as the brakes), on wall time in lockstep (time waits for commands)
             now = self._t_ns * 1e-9 if self.mode == "realtime" else time.monotonic()
-            if not self._ownership.admit(sender, now, self.command_timeout):
-                self._foreign(sender)
+            if not robot.admit(sender, now, self.command_timeout):
                 return
             if self.mode == "realtime":
-                self._tau, self._tau_t_ns = tau, self._t_ns
+                robot.tau, robot.tau_t_ns = tau, self._t_ns
                 if stamp_ns is not None:
                     self._latency_ns = self._latency(stamp_ns, received)
                 return
@@ -686,58 +448,56 @@ class SimBridge(Node):
                 return
             if stamp_ns is not None and stamp_ns != self._awaiting:
                 return  # answers an older state
-            answered = self._awaiting
+            robot.answer = tau
+            if any(r.answer is None for r in self.robots):
+                return  # the world steps when every robot has answered
+            latency = self._latency(self._awaiting, received)
             self._awaiting = None
-            latency = self._latency(answered, received)
-            self.plant.step(tau, self.substeps, self._t_ns * 1e-9)
-            self._t_ns += self.period_ns
-            self._publish_state()
+            self._step_lockstep()
         self.loop_stats.tick(received, time.perf_counter_ns(), latency, -1, self.period_ns)
 
-    def _foreign(self, sender: str) -> None:
-        """A valid command from another commander than the owner: refused (lock held)."""
-        self.counts["rejected.foreign_commands"] += 1
-        owner = self._ownership.owner
-        self.get_logger().warning(
-            f"rejected a command from {sender or '(unnamed)'!r}: {owner or '(unnamed)'!r} "
-            "commands this plant (it is freed when its commands stop for command_timeout, "
-            "when it leaves, or by ~/release)",
-            throttle_duration_sec=1.0,
-        )
+    def _step_lockstep(self) -> None:
+        """Every robot's answer held over one period, the world stepped (lock held)."""
+        t = self._t_ns * 1e-9
+        for robot in self.robots:
+            robot.plant.begin_torque(robot.answer)
+            robot.answer = None
+        for k in range(self.substeps):
+            for robot in self.robots:
+                robot.plant.apply_torque(k, t)
+            self.world.step()
+        for robot in self.robots:
+            robot.plant.end_torque()
+        self._t_ns += self.period_ns
+        self._publish_state()
 
-    def _check_owner(self) -> None:
-        """Free the plant when its owner left the graph (executor thread)."""
-        publishers = self.get_publishers_info_by_topic(self.resolve_topic_name("effort_command"))
-        present = {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in publishers}
-        if publishers:
-            present.add("")  # an unnamed commander may be any of them
-        if self.get_publishers_info_by_topic(self.resolve_topic_name("~/commands")):
-            present.add(ARRAY_COMMANDER)
-        with self._lock:
-            left = self._ownership.left(present)
-        if left is not None:
-            self.get_logger().info(f"{left or '(unnamed)'!r} left: the plant is free")
+    def _check_graph(self) -> None:
+        """Free a plant whose owner left the graph; say once that another node publishes
+        /clock (executor thread)."""
+        for robot in self.robots:
+            present = robot.commanders_present()
+            with self.lock:
+                left = robot.ownership.left(present)
+            if left is not None:
+                who = f"{robot.name}: " if robot.name else ""
+                self.get_logger().info(f"{who}{left or '(unnamed)'!r} left: the plant is free")
+        if not self._clock_said:
+            others = self._clock_publishers()
+            if others:
+                self._clock_said = True
+                self.get_logger().error(
+                    f"{', '.join(others)} publish(es) /clock too: use_sim_time nodes now see "
+                    "two clocks. One simulator per ROS domain (several robots: one world, "
+                    "docs/robots.md, Several robots)"
+                )
 
-    def _on_release(self, request: Trigger.Request, response: Trigger.Response) -> Any:
-        with self._lock:
-            owner = self._ownership.release()
-        response.success = True
-        response.message = (
-            f"released {owner or '(unnamed)'!r}" if owner is not None else "nobody owned it"
-        )
-        self.get_logger().info(f"~/release: {response.message}")
+    def _on_release(self, robot: SimRobot, response: Trigger.Response) -> Any:
+        with self.lock:
+            message = robot.release()
+        response.success, response.message = True, message
+        who = robot.private if robot.name else "~/"
+        self.get_logger().info(f"{who}release: {message}")
         return response
-
-    def _on_wrench(self, msg: WrenchStamped) -> None:
-        """Hold the wrench on the link ``header.frame_id`` names ('': the last controlled
-        joint's child link) until the next message; a zero wrench removes it."""
-        f, mu = msg.wrench.force, msg.wrench.torque
-        try:
-            with self._lock:
-                self.plant.hold_wrench(msg.header.frame_id, (f.x, f.y, f.z), (mu.x, mu.y, mu.z))
-        except ValueError as err:
-            self.counts["rejected.wrenches"] += 1
-            self.get_logger().warning(f"rejected wrench: {err}", throttle_duration_sec=1.0)
 
     # -- realtime ----------------------------------------------------------------------
     def _realtime_loop(self) -> None:
@@ -762,7 +522,7 @@ class SimBridge(Node):
         k = 0
         while self._running:
             start = time.perf_counter_ns()
-            with self._lock:
+            with self.lock:
                 ticking = not self._paused
                 if ticking:
                     self._physics_step()
@@ -779,47 +539,42 @@ class SimBridge(Node):
             self._polled_ns += pacing.sleep_until(deadline, spin)
 
     def _physics_step(self) -> None:
-        fresh = (
-            self._tau is not None and (self._t_ns - self._tau_t_ns) * 1e-9 <= self.command_timeout
-        )
-        if fresh:
-            if self._braking:
-                self.get_logger().info("valid commands: torque control")
-                self._braking = self._timed_out = False
-            self.plant.step(self._tau, 1, self._t_ns * 1e-9)
-        else:
-            if not self._braking:
-                self.get_logger().warning(
-                    f"no valid command for {self.command_timeout} s: brakes engaged"
-                )
-                self._braking = self._timed_out = True
-                self.counts["brake.engaged"] += 1
-            self.plant.brake(1, self._t_ns * 1e-9)
+        """One physics step of the world: each robot under its command or its brakes."""
+        t = self._t_ns * 1e-9
+        for robot in self.robots:
+            robot.begin_tick(self._t_ns, self.command_timeout)
+        for robot in self.robots:
+            robot.apply(0, t)
+        self.world.step()
+        for robot in self.robots:
+            robot.end_tick()
         self._t_ns += self.physics_dt_ns
 
     # -- services ----------------------------------------------------------------------
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
-        with self._lock:
-            self.plant.reset()
-            self._measured_ns = None
-            self._tau = None
+        with self.lock:
+            for robot in self.robots:
+                robot.reset()
             if self.mode == "lockstep" and not self._paused:
                 self._publish_state()
         response.success, response.message = True, "reset to the initial configuration"
         return response
 
     def _on_pause(self, request: Trigger.Request, response: Trigger.Response) -> Any:
-        with self._lock:
+        with self.lock:
             self._paused = True
             self._awaiting = None
+            for robot in self.robots:
+                robot.answer = None
         response.success, response.message = True, "paused"
         return response
 
     def _on_resume(self, request: Trigger.Request, response: Trigger.Response) -> Any:
-        with self._lock:
+        with self.lock:
             was_paused, self._paused = self._paused, False
             if self.mode == "realtime":
-                self._tau = None  # commands from before the pause are stale
+                for robot in self.robots:
+                    robot.tau = None  # commands from before the pause are stale
             elif was_paused or self._awaiting is None:
                 self._publish_state()
         response.success, response.message = True, "running"
@@ -830,7 +585,7 @@ class SimBridge(Node):
         thread = getattr(self, "_thread", None)
         if thread is not None:
             thread.join(timeout=1.0)
-        self.plant.close()
+        self.world.close()
 
 
 def main(args: list[str] | None = None) -> None:

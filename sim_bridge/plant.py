@@ -81,6 +81,42 @@ def rotation(quaternion: Sequence[float]) -> np.ndarray:
     )
 
 
+class World:
+    """One PyBullet physics client: gravity, the time step, and the step of every robot in
+    it together (several :class:`Plant` may share one world: one clock for all)."""
+
+    def __init__(self, physics_rate: float = 1000.0, gui: bool = False) -> None:
+        if not (np.isfinite(physics_rate) and physics_rate > 0):
+            raise ValueError("physics_rate must be a positive number")
+        self.dt = 1.0 / physics_rate
+        self.gui = gui
+        self.client = pb.connect(pb.GUI if gui else pb.DIRECT)
+        c = self.client
+        pb.setGravity(*GRAVITY, physicsClientId=c)
+        pb.setTimeStep(self.dt, physicsClientId=c)
+        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=c)
+        self._friction: set[int] = set()  # plants with Coulomb friction (ids)
+
+    def step(self) -> None:
+        pb.stepSimulation(physicsClientId=self.client)
+
+    def friction_solver(self, plant: Plant, on: bool) -> None:
+        """Bullet's solver settings for Coulomb friction while any plant of the world has it
+        (:data:`FRICTION_SOLVER`; the solver is the world's)."""
+        was = bool(self._friction)
+        if on:
+            self._friction.add(id(plant))
+        else:
+            self._friction.discard(id(plant))
+        if bool(self._friction) != was:
+            solver = FRICTION_SOLVER if self._friction else DEFAULT_SOLVER
+            pb.setPhysicsEngineParameter(**solver, physicsClientId=self.client)
+
+    def close(self) -> None:
+        if pb.isConnected(self.client):
+            pb.disconnect(self.client)
+
+
 @dataclass
 class PlantState:
     q: np.ndarray
@@ -89,7 +125,7 @@ class PlantState:
 
 
 class Plant:
-    """One robot in its own PyBullet physics client."""
+    """One robot, in a PyBullet world of its own or in a shared :class:`World`."""
 
     def __init__(
         self,
@@ -102,18 +138,32 @@ class Plant:
         locked_positions: dict[str, float] | None = None,
         effort_limits: Sequence[float] | None = None,
         gui: bool = False,
+        world: World | None = None,
+        base_position: Sequence[float] = (0.0, 0.0, 0.0),
+        base_orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
     ) -> None:
-        if not (np.isfinite(physics_rate) and physics_rate > 0):
-            raise ValueError("physics_rate must be a positive number")
+        """``world``: the world to load into (its rate and GUI apply; ``physics_rate`` and
+        ``gui`` are then ignored), None: one of its own, closed with the plant.
+        ``base_position`` [m] and ``base_orientation`` (quaternion x, y, z, w): where the
+        fixed base stands in the world."""
         self.spec = spec
         self.joint_names = tuple(joints)
         self.n = len(self.joint_names)
-        self.dt = 1.0 / physics_rate
-        self.client = pb.connect(pb.GUI if gui else pb.DIRECT)
+        self._own_world = world is None
+        self.world = World(physics_rate, gui) if world is None else world
+        self.dt = self.world.dt
+        self.client = self.world.client
         try:
-            self._load(self.joint_names, locked_positions or {}, effort_limits)
+            self._load(
+                self.joint_names,
+                locked_positions or {},
+                effort_limits,
+                tuple(base_position),
+                tuple(base_orientation),
+            )
         except Exception:
-            pb.disconnect(self.client)
+            if self._own_world:
+                self.world.close()
             raise
         self.friction = np.zeros(self.n)
         self.set_friction(friction)
@@ -131,6 +181,7 @@ class Plant:
         )
         self.warnings = self._inertia_warnings()
         self._effort = np.zeros(self.n)
+        self._target = np.zeros(self.n)  # the clamped command of the step being taken
         self.reset()
 
     # -- set-up ------------------------------------------------------------------------
@@ -139,14 +190,15 @@ class Plant:
         joints: tuple[str, ...],
         locked: dict[str, float],
         effort_limits: Sequence[float] | None,
+        base_position: tuple[float, ...],
+        base_orientation: tuple[float, ...],
     ) -> None:
         c = self.client
-        pb.setGravity(*GRAVITY, physicsClientId=c)
-        pb.setTimeStep(self.dt, physicsClientId=c)
-        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=c)
         try:
             self.body = pb.loadURDF(
                 str(self.spec.urdf_path),
+                basePosition=base_position,
+                baseOrientation=base_orientation,
                 useFixedBase=True,
                 flags=pb.URDF_USE_INERTIA_FROM_FILE,
                 physicsClientId=c,
@@ -259,8 +311,7 @@ class Plant:
         self._coulomb_on = bool(np.any(fs))
         self._stiction = bool(np.any(fs != fc))
         if self._coulomb_on != was_on:
-            solver = FRICTION_SOLVER if self._coulomb_on else DEFAULT_SOLVER
-            pb.setPhysicsEngineParameter(**solver, physicsClientId=self.client)
+            self.world.friction_solver(self, self._coulomb_on)
         if self._coulomb_on or was_on:
             self._friction_motors(self._velocities())
 
@@ -396,48 +447,75 @@ class Plant:
         torque-rate limit if one is set) over ``substeps`` physics steps, adding the viscous
         friction −F q̇ evaluated at each sub-step, the Coulomb friction and the external
         wrench (scheduled ones evaluated at t + k dt for sub-step k; t [s] is the
-        simulation time at the start)."""
-        target = np.clip(tau, self._lowest_effort, self.effort_limits)
-        tau = target
-        c, body, idx = self.client, self.body, self._idx
+        simulation time at the start). Steps this plant's world: in a shared world, step
+        every plant together with :meth:`begin_torque`/:meth:`apply_torque` (or the brake
+        equivalents) and :meth:`World.step`."""
+        self.begin_torque(tau)
         for k in range(substeps):
-            if self._max_step is not None:
-                tau = limit_rate(target, self._effort, self._max_step)
-                self._effort = tau
-            if self._has_friction or self._stiction:
-                dq = self._velocities()
-                applied = tau - self.friction * dq if self._has_friction else tau
-                if self._stiction:
-                    self._friction_motors(dq)
-            else:
-                applied = tau
-            pb.setJointMotorControlArray(
-                body, idx, pb.TORQUE_CONTROL, forces=applied.tolist(), physicsClientId=c
-            )
-            if self._held is not None or self._schedule is not None:
-                self._apply_wrench(t + k * self.dt)
-            pb.stepSimulation(physicsClientId=c)
-        self._effort = tau
+            self.apply_torque(k, t)
+            self.world.step()
+        self.end_torque()
+
+    def begin_torque(self, tau: np.ndarray) -> None:
+        """Start a step under torque control: the command, clamped to the effort limits."""
+        self._target = np.clip(tau, self._lowest_effort, self.effort_limits)
+        self._tau = self._target
+
+    def apply_torque(self, k: int, t: float) -> None:
+        """The motor torques (rate limit, friction) and the wrench for sub-step k, before
+        the world steps."""
+        tau = self._tau
+        if self._max_step is not None:
+            tau = limit_rate(self._target, self._effort, self._max_step)
+            self._effort = self._tau = tau
+        if self._has_friction or self._stiction:
+            dq = self._velocities()
+            applied = tau - self.friction * dq if self._has_friction else tau
+            if self._stiction:
+                self._friction_motors(dq)
+        else:
+            applied = tau
+        pb.setJointMotorControlArray(
+            self.body,
+            self._idx,
+            pb.TORQUE_CONTROL,
+            forces=applied.tolist(),
+            physicsClientId=self.client,
+        )
+        if self._held is not None or self._schedule is not None:
+            self._apply_wrench(t + k * self.dt)
+
+    def end_torque(self) -> None:
+        self._effort = self._tau
 
     def brake(self, substeps: int = 1, t: float = 0.0) -> None:
         """Safe fallback: engage brakes, i.e. velocity servos with zero target speed and at
         most the effort limit, so the arm stops and holds wherever it is (the external
         wrench still acts, at t + k dt). Afterwards the velocity motors are the Coulomb
-        friction again (force 0 without it)."""
-        c, body, idx = self.client, self.body, self._idx
+        friction again (force 0 without it). Steps this plant's world (see :meth:`step`)."""
+        self.begin_brake()
+        for k in range(substeps):
+            self.apply_brake(k, t)
+            self.world.step()
+        self.end_brake()
+
+    def begin_brake(self) -> None:
         forces = np.where(np.isfinite(self.effort_limits), self.effort_limits, LOCK_FORCE)
         pb.setJointMotorControlArray(
-            body,
-            idx,
+            self.body,
+            self._idx,
             pb.VELOCITY_CONTROL,
             targetVelocities=[0.0] * self.n,
             forces=forces.tolist(),
-            physicsClientId=c,
+            physicsClientId=self.client,
         )
-        for k in range(substeps):
-            if self._held is not None or self._schedule is not None:
-                self._apply_wrench(t + k * self.dt)
-            pb.stepSimulation(physicsClientId=c)
+
+    def apply_brake(self, k: int, t: float) -> None:
+        if self._held is not None or self._schedule is not None:
+            self._apply_wrench(t + k * self.dt)
+
+    def end_brake(self) -> None:
+        c, body, idx = self.client, self.body, self._idx
         _, dq, _, applied = zip(*pb.getJointStates(body, idx, physicsClientId=c), strict=True)
         self._effort = np.array(applied)
         if self._coulomb_on:
@@ -448,5 +526,6 @@ class Plant:
             )
 
     def close(self) -> None:
-        if pb.isConnected(self.client):
-            pb.disconnect(self.client)
+        """Close the world when it is this plant's own."""
+        if self._own_world:
+            self.world.close()

@@ -280,10 +280,13 @@ ROBOT_PARAMETERS = (
 
 
 def robot_model(
-    values: Mapping[str, Any], perturbation: Any = None, node: Node | None = None
+    values: Mapping[str, Any],
+    perturbation: Any = None,
+    node: Node | None = None,
+    description_topic: str = "robot_description",
 ) -> RobotModel:
     """The model of the robot the parameters name, for the ``joints`` given, with its
-    warnings logged by ``node`` (which also reads the ``robot_description`` topic for
+    warnings logged by ``node`` (which also reads ``description_topic`` for
     ``robot:=topic``)."""
     text = values["robot_description"]
     urdf = values["urdf_path"]
@@ -291,7 +294,8 @@ def robot_model(
     if robot == ROBOT_FROM_TOPIC:
         if node is None:
             raise ValueError("robot:=topic needs a node to read the robot_description topic")
-        text, robot = description_from_topic(node, value(values, "description_timeout")), ""
+        timeout = value(values, "description_timeout")
+        text, robot = description_from_topic(node, timeout, description_topic), ""
     spec = resolve_robot(
         robot,
         urdf if not text else "",
@@ -312,9 +316,9 @@ def robot_model(
     return model
 
 
-def description_from_topic(node: Node, timeout: float) -> str:
-    """The URDF text on the latched ``robot_description`` topic (std_msgs/String, transient
-    local, as robot_state_publisher publishes it)."""
+def description_from_topic(node: Node, timeout: float, name: str = "robot_description") -> str:
+    """The URDF text on the latched topic ``name`` (std_msgs/String, transient local, as
+    robot_state_publisher publishes ``robot_description``)."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from rclpy.wait_for_message import wait_for_message
     from std_msgs.msg import String
@@ -324,11 +328,9 @@ def description_from_topic(node: Node, timeout: float) -> str:
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
         reliability=ReliabilityPolicy.RELIABLE,
     )
-    topic = node.resolve_topic_name("robot_description")
+    topic = node.resolve_topic_name(name)
     node.get_logger().info(f"robot:=topic: waiting up to {timeout:g} s for {topic}")
-    ok, msg = wait_for_message(
-        String, node, "robot_description", qos_profile=qos, time_to_wait=timeout
-    )
+    ok, msg = wait_for_message(String, node, name, qos_profile=qos, time_to_wait=timeout)
     if not ok or not msg.data:
         raise ValueError(
             f"no robot description on {topic} within {timeout:g} s (robot:=topic): start "

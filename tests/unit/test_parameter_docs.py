@@ -18,6 +18,7 @@ from joint_space_control.nodes.recorder import PARAMETERS as RECORDER
 from joint_space_control.nodes.trajectory_generator import PARAMETERS as GENERATOR
 from joint_space_control.ros.parameters import ROBOT_PARAMETERS, ParamSpec
 from sim_bridge.node import PARAMETERS as SIM_BRIDGE
+from sim_bridge.parameters import prefixed
 
 ROOT = Path(__file__).resolve().parents[2]
 DOC = ROOT / "docs" / "parameters.md"
@@ -120,11 +121,32 @@ def test_the_docs_list_no_parameter_that_does_not_exist():
 
 @pytest.mark.parametrize("path", sorted(CONFIG.glob("*.yaml")), ids=lambda p: p.name)
 def test_parameter_files_set_only_declared_parameters(path):
-    node = next(n for n in sorted(NODES, key=len, reverse=True) if path.stem.startswith(n))
-    declared = {s.name for s in NODES[node]} | {"use_sim_time"}
+    node = WORLDS.get(path.name) or next(
+        n for n in sorted(NODES, key=len, reverse=True) if path.stem.startswith(n)
+    )
     for entry in yaml.safe_load(path.read_text()).values():
-        keys = set(entry["ros__parameters"])
+        values = entry["ros__parameters"]
+        robots = values.get("robots", []) if node == "sim_bridge" else []
+        declared = {s.name for s in NODES[node]} | {"use_sim_time"}
+        declared |= {s.name for name in robots for s in prefixed(name)}
+        keys = set(flat(values))
         assert keys <= declared, (path.name, keys - declared)
+        assert set(robots) <= set(values), (path.name, "a robot without its parameters")
+
+
+#: Parameter files of a node their name does not start with.
+WORLDS = {"two_robots.yaml": "sim_bridge"}
+
+
+def flat(values: dict, prefix: str = "") -> dict:
+    """A params file's nested mappings as ROS names them: ``a: {b: 1}`` is ``a.b``."""
+    out = {}
+    for key, value in values.items():
+        if isinstance(value, dict):
+            out |= flat(value, f"{prefix}{key}.")
+        else:
+            out[prefix + key] = value
+    return out
 
 
 def test_the_checker_sees_a_wrong_default():

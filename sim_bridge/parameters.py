@@ -1,0 +1,260 @@
+"""The parameters of ``sim_bridge`` (docs/parameters.md): the world's (timing, mode, GUI, the
+realtime threads) and each robot's (its description, where it stands, its plant and how it is
+measured).
+
+One robot: every parameter at the top level, as always. Several robots in one world
+(``robots``, docs/robots.md "Several robots"): ``robots`` lists their names, each the
+namespace of the robot's topics, and each robot's parameters are ``<name>.<parameter>``
+(in a params file, a mapping under the name); the top-level robot parameters are then
+not used.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from typing import Any
+
+from joint_space_control.ros import parameters as params
+from joint_space_control.ros import realtime_threads
+from sim_bridge.wrench import PROFILES
+
+MODES = ("realtime", "lockstep")
+POSITIVE = {"minimum": 0.0, "exclusive": True}
+NONNEGATIVE = {"minimum": 0.0}
+
+#: The world's parameters (one set for every robot in it).
+WORLD_PARAMETERS = realtime_threads.PARAMETERS + (
+    params.ParamSpec("mode", "realtime", "Plant timing", read_only=True, choices=MODES),
+    params.ParamSpec(
+        "physics_rate",
+        1000.0,
+        "Physics step rate, a multiple of publish_rate",
+        read_only=True,
+        unit="Hz",
+        **POSITIVE,
+    ),
+    params.ParamSpec(
+        "publish_rate",
+        1000.0,
+        "Joint state rate (= command period in lockstep)",
+        read_only=True,
+        unit="Hz",
+        **POSITIVE,
+    ),
+    params.ParamSpec(
+        "command_timeout",
+        0.1,
+        "Realtime: brake when no valid command for this long",
+        unit="s",
+        **POSITIVE,
+    ),
+    params.ParamSpec(
+        "republish_period",
+        0.5,
+        "Lockstep: send an unanswered state again after this wall time",
+        read_only=True,
+        unit="s",
+        **POSITIVE,
+    ),
+    params.ParamSpec("start_paused", False, "Start paused (call ~/resume to run)", read_only=True),
+    params.ParamSpec(
+        "pause_at",
+        0.0,
+        "Lockstep: pause once the state at this simulation time is published "
+        "(0: never); setting it again re-arms it",
+        unit="s",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
+    params.REJECT_FACTOR,
+    params.ParamSpec(
+        "robots",
+        [],
+        "Several robots in one world: their names, each the namespace of its topics and the "
+        "prefix of its parameters (<name>.robot, <name>.base_position, ...); empty: one robot "
+        "from the top-level parameters",
+        read_only=True,
+        kind="names",
+    ),
+)
+
+#: One robot's plant: where it stands, its friction and payload, how it is measured, the
+#: wrench on it (besides :data:`~joint_space_control.ros.parameters.ROBOT_PARAMETERS`).
+PLANT_PARAMETERS = (
+    params.ParamSpec(
+        "initial_positions",
+        0.0,
+        "Initial joint positions (clipped into the joint limits)",
+        read_only=True,
+        dynamic=True,
+        unit="rad",
+    ),
+    params.ParamSpec(
+        "base_position",
+        [0.0, 0.0, 0.0],
+        "Where the robot's fixed base stands in the world (x, y, z)",
+        read_only=True,
+        kind="numbers",
+        length=3,
+        unit="m",
+    ),
+    params.ParamSpec(
+        "base_rpy",
+        [0.0, 0.0, 0.0],
+        "Orientation of the base in the world: roll, pitch, yaw (fixed axes x, y, z)",
+        read_only=True,
+        kind="numbers",
+        length=3,
+        unit="rad",
+    ),
+    params.ParamSpec(
+        "viscous_friction",
+        0.0,
+        "Plant viscous friction F (the URDF's joint damping is not applied)",
+        dynamic=True,
+        unit="N·m·s/rad",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "payload_mass",
+        0.0,
+        "Point mass at the centre of mass of the last joint's link (plant only)",
+        unit="kg",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "max_torque_rate",
+        0.0,
+        "Torque-rate limit on the applied torque (0: off)",
+        dynamic=True,
+        unit="N·m/s",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "encoder_counts",
+        0.0,
+        "Encoder counts per revolution: published positions rounded to 2π/counts (0: off)",
+        dynamic=True,
+        unit="counts/rev",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "position_noise",
+        0.0,
+        "σ of the Gaussian noise on the published positions, before quantization",
+        dynamic=True,
+        unit="rad",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "velocity_noise",
+        0.0,
+        "σ of the Gaussian noise on the published velocities",
+        dynamic=True,
+        unit="rad/s",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "noise_seed",
+        0,
+        "Seed of the measurement noise (numpy default_rng); setting it restarts the noise",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "measure_velocity",
+        True,
+        "false: joint_states carry no velocities (an empty velocity array)",
+        read_only=True,
+    ),
+    params.ParamSpec(
+        "coulomb_friction",
+        0.0,
+        "Plant Coulomb friction F_c (a velocity motor with target 0 and at most F_c)",
+        dynamic=True,
+        unit="N·m or N",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "static_friction",
+        0.0,
+        "Stiction F_s >= F_c, held below 1e-3 rad/s (0: same as coulomb_friction)",
+        dynamic=True,
+        unit="N·m or N",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "wrench_link",
+        "",
+        "Link of the scheduled wrench ('': the last controlled joint's child link)",
+    ),
+    params.ParamSpec(
+        "wrench_force",
+        [0.0, 0.0, 0.0],
+        "Scheduled force on the robot, world frame, at the link frame's origin (0: off)",
+        kind="numbers",
+        length=3,
+        unit="N",
+    ),
+    params.ParamSpec(
+        "wrench_torque",
+        [0.0, 0.0, 0.0],
+        "Scheduled torque on the robot, world frame (0 and a zero force: off)",
+        kind="numbers",
+        length=3,
+        unit="N·m",
+    ),
+    params.ParamSpec(
+        "wrench_profile", "step", "Scheduled wrench profile in time", choices=PROFILES
+    ),
+    params.ParamSpec(
+        "wrench_start",
+        0.0,
+        "Scheduled wrench: start time (simulation)",
+        unit="s",
+        **NONNEGATIVE,
+    ),
+    params.ParamSpec(
+        "wrench_duration", 0.0, "Scheduled wrench: length of a pulse", unit="s", **NONNEGATIVE
+    ),
+    params.ParamSpec(
+        "wrench_frequency",
+        0.0,
+        "Scheduled wrench: frequency of a sinusoid",
+        unit="Hz",
+        **NONNEGATIVE,
+    ),
+)
+
+#: Every parameter of a one-robot sim_bridge (the robot's at the top level).
+PARAMETERS = params.ROBOT_PARAMETERS + WORLD_PARAMETERS + PLANT_PARAMETERS
+#: A robot's own parameters, unprefixed.
+ROBOT_OWN = params.ROBOT_PARAMETERS + PLANT_PARAMETERS
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
+def robot_names(value: Any) -> tuple[str, ...]:
+    """``robots`` checked: distinct names usable as a namespace and a parameter prefix."""
+    names = params.names({"robots": value}, "robots") if value else ()
+    bad = [name for name in names if not _NAME.fullmatch(name)]
+    if bad:
+        raise ValueError(
+            f"'robots': {bad} are not names (a letter, then letters, digits or _): each is "
+            "the namespace of a robot's topics"
+        )
+    if len(set(names)) != len(names):
+        raise ValueError(f"'robots' names a robot twice: {list(names)}")
+    return tuple(names)
+
+
+def prefixed(name: str) -> tuple[params.ParamSpec, ...]:
+    """The parameters of robot ``name`` in a world of several: ``<name>.<parameter>``."""
+    return tuple(dataclasses.replace(spec, name=f"{name}.{spec.name}") for spec in ROBOT_OWN)
+
+
+def robot_values(values: params.ParamValues, name: str) -> params.ParamValues:
+    """Robot ``name``'s values under their own names ("" : the top-level ones)."""
+    key = f"{name}." if name else ""
+    return params.ParamValues(
+        ROBOT_OWN, {spec.name: values[key + spec.name] for spec in ROBOT_OWN}
+    )
