@@ -2,6 +2,7 @@
 #
 #   make venv          .venv with ROS 2 Jazzy + deps from PyPI, package installed editable
 #   make test          ruff check, ruff format --check, pytest   (what .ci/run runs first)
+#   make system-deps   Debian packages the tests need beyond PyPI (xvfb), apt-get if missing
 #   make demo          short end-to-end demo into out/demo
 #   make stress        start/stop every executable 20 times with both signals (CI, ~4 min)
 #   make colcon-check  colcon build into build/colcon_ws and check the ament layout
@@ -22,7 +23,7 @@ STAMP := $(VENV)/.install-stamp
 # Console scripts that must land in .venv/bin (checked after the install, see setup.cfg).
 VENV_SCRIPTS := sim_bridge pd_gravity_controller inverse_dynamics_controller trajectory_generator recorder jsc
 
-.PHONY: venv demo test stress lint format colcon-check wheel-check clean distclean
+.PHONY: venv system-deps demo test stress lint format colcon-check wheel-check clean distclean
 
 venv: $(STAMP)
 
@@ -42,13 +43,36 @@ $(STAMP): setup.py setup.cfg
 	done
 	touch $@
 
+# What PyPI cannot give: Xvfb, the X server the GUI test opens PyBullet's window on
+# (tests/integration/test_gui_view.py, skipped without it). Installed with apt-get
+# (root, or passwordless sudo) when the Xvfb command is missing; where that is impossible
+# a message says what to install and the rest goes on. A failing apt-get is an error.
+APT_PACKAGES := xvfb
+system-deps:
+	@if command -v Xvfb >/dev/null 2>&1; then \
+	  echo "system-deps: Xvfb present"; \
+	elif ! command -v apt-get >/dev/null 2>&1; then \
+	  echo "system-deps: no apt-get here; install Xvfb to run the GUI test (skipped without it)"; \
+	else \
+	  if [ "$$(id -u)" -eq 0 ]; then sudo=""; \
+	  elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then sudo="sudo -n"; \
+	  else \
+	    echo "system-deps: not root; run 'sudo apt-get install $(APT_PACKAGES)' for the GUI test (skipped without it)"; \
+	    exit 0; \
+	  fi; \
+	  echo "system-deps: apt-get install $(APT_PACKAGES)"; \
+	  $$sudo env DEBIAN_FRONTEND=noninteractive apt-get update -q && \
+	  $$sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
+	    $(APT_PACKAGES); \
+	fi
+
 demo: venv
 	$(VENV)/bin/jsc demo --out out/demo
 
 # Two pytest workers (pytest-xdist): each integration test leases its own ROS domain. The
 # tests that judge a realtime loop against the wall clock (marker realtime) then run one at
 # a time: beside another test's processes on two cores their loop stalls (issue 16).
-test: venv
+test: venv system-deps
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 	$(PY) -m pytest -n 2 -m "not realtime"

@@ -35,6 +35,7 @@ from joint_space_control.arrays import nonnegative, per_joint
 from joint_space_control.laws.limits import limit_rate, rate_steps
 from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
+from sim_bridge.view import frame_view
 from sim_bridge.wrench import WrenchSchedule, wrench_vector
 
 GRAVITY = (0.0, 0.0, -9.81)
@@ -183,6 +184,8 @@ class Plant:
         self._effort = np.zeros(self.n)
         self._target = np.zeros(self.n)  # the clamped command of the step being taken
         self.reset()
+        if gui:  # the robot as it starts, no panels
+            frame_view(self.client, [self.body])
 
     # -- set-up ------------------------------------------------------------------------
     def _load(
