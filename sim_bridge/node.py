@@ -90,6 +90,7 @@ from sim_bridge.parameters import (
 )
 from sim_bridge.plant import World
 from sim_bridge.robot import COUNTERS, SimRobot  # noqa: F401  (COUNTERS: re-exported)
+from sim_bridge.view import frame_view
 
 #: How often [s] the graph is checked for an owner that left (and for another /clock).
 OWNER_CHECK = 0.25
@@ -146,6 +147,12 @@ class SimBridge(Node):
         except Exception:
             self.world.close()
             raise
+        if self.world.gui:  # every robot as it starts, no panels
+            bodies = [robot.plant.body for robot in self.robots]
+            if len(bodies) == 1:
+                frame_view(self.world.client, bodies)
+            else:  # from the side: robots placed along x stand side by side
+                frame_view(self.world.client, bodies, yaw=0.0, pitch=-15.0)
         self._refuse_second_clock(created)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 

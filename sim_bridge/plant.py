@@ -184,7 +184,7 @@ class Plant:
         self._effort = np.zeros(self.n)
         self._target = np.zeros(self.n)  # the clamped command of the step being taken
         self.reset()
-        if gui:  # the robot as it starts, no panels
+        if self._own_world and self.world.gui:  # the robot as it starts, no panels
             frame_view(self.client, [self.body])
 
     # -- set-up ------------------------------------------------------------------------
