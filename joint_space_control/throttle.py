@@ -65,7 +65,9 @@ Text = str | Callable[[], str]
 
 class ThrottledLog:
     """A logger behind a :class:`Throttle`: each method takes the kind, then the text and
-    its format arguments (``text.format(*args)``, only when the line is said)."""
+    its format arguments (``text.format(*args)``, only when the line is said), and returns
+    whether the line was said. Through an rclpy logger the lines name this module as their
+    caller (``{file_name}``, ``{line_number}`` in RCUTILS_CONSOLE_OUTPUT_FORMAT)."""
 
     def __init__(
         self, logger: Logger, period: float = 1.0, clock: Callable[[], float] = time.monotonic
@@ -73,23 +75,32 @@ class ThrottledLog:
         self.logger = logger
         self.throttle = Throttle(period, clock)
 
+    # One call of the logger per method: rclpy's logger keeps one severity per call site.
     def info(self, kind: Hashable, text: Text, *args: object) -> bool:
-        return self._say(self.logger.info, kind, text, args)
+        line = self._line(kind, text, args)
+        if line is not None:
+            self.logger.info(line)
+        return line is not None
 
     def warning(self, kind: Hashable, text: Text, *args: object) -> bool:
-        return self._say(self.logger.warning, kind, text, args)
+        line = self._line(kind, text, args)
+        if line is not None:
+            self.logger.warning(line)
+        return line is not None
 
     def error(self, kind: Hashable, text: Text, *args: object) -> bool:
-        return self._say(self.logger.error, kind, text, args)
+        line = self._line(kind, text, args)
+        if line is not None:
+            self.logger.error(line)
+        return line is not None
 
-    def _say(self, log: Callable[[str], object], kind: Hashable, text: Text, args: tuple) -> bool:
-        """Say the line now, or hold it back; returns whether it was said."""
+    def _line(self, kind: Hashable, text: Text, args: tuple) -> str | None:
+        """The line to say now, or None to hold it back."""
         held = self.throttle.due(kind)
         if held is None:
-            return False
+            return None
         if callable(text):
             line = text()
         else:
             line = text.format(*args) if args else text
-        log(line + HELD_BACK.format(held) if held else line)
-        return True
+        return line + HELD_BACK.format(held) if held else line

@@ -113,6 +113,17 @@ def test_the_log_says_the_held_back_count_and_builds_no_text_while_holding_back(
     ]
 
 
+def test_an_rclpy_logger_takes_every_severity():
+    """rclpy's logger refuses two severities from one call site (ValueError)."""
+    from rclpy.logging import get_logger
+
+    log = ThrottledLog(get_logger("test_throttle"))
+    for k in range(2):
+        assert log.info(("info", k), "info {}", k)
+        assert log.warning(("warning", k), "warning {}", k)
+        assert log.error(("error", k), "error {}", k)
+
+
 def test_no_ros_import():
     tree = ast.parse(Path(throttle.__file__).read_text())
     names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
