@@ -90,6 +90,7 @@ from joint_space_control.ros.plant_mode import PlantModeWatcher
 from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.reference_worker import ReferenceBuilder
 from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
+from joint_space_control.throttle import ThrottledLog
 from joint_space_control.trajectories.reference import Trajectory
 
 TRIGGERS = ("auto", "timer", "state")
@@ -102,6 +103,10 @@ COUNTERS = (
     "stale.stops",
     "restarts",
     "beyond_bound.torques",
+)
+NO_VELOCITY = (
+    "rejected joint state: no velocity, and velocity_source is 'measured' (set auto, "
+    "backward_difference or filtered_difference to estimate it)"
 )
 
 COMMON_PARAMETERS = (
@@ -286,6 +291,8 @@ class JointController(Node):
         self._state_timeout = params.value(values, "state_timeout")
         self._reject_factor = params.value(values, "reject_factor")
         self._lock = threading.Lock()  # parameter updates wait for the end of a tick
+        # what may recur at every tick or message: one line a second per kind (throttle.py)
+        self._log = ThrottledLog(self.get_logger())
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._order = JointOrder(self.joints)
@@ -536,7 +543,7 @@ class JointController(Node):
             return
         if isinstance(result, str):
             self.counts["rejected.references"] += 1
-            self.get_logger().warning(f"rejected reference: {result}", throttle_duration_sec=1.0)
+            self._log.warning("rejected reference", "rejected reference: {}", result)
             return
         if arrival is not None and result.start == arrival:
             result = dataclasses.replace(result, start=self._now())
@@ -556,20 +563,17 @@ class JointController(Node):
             stamp, (q, dq) = self._reader.read(raw)
         except ValueError as err:
             self.counts["rejected.joint_states"] += 1
-            self.get_logger().warning(f"rejected joint state: {err}", throttle_duration_sec=1.0)
+            self._log.warning("rejected joint state", "rejected joint state: {}", err)
             return
         if not dq.size and self.core.sampling.velocity is VelocitySource.MEASURED:
             self.counts["rejected.joint_states"] += 1
-            self.get_logger().warning(
-                "rejected joint state: no velocity, and velocity_source is 'measured' (set "
-                "auto, backward_difference or filtered_difference to estimate it)",
-                throttle_duration_sec=1.0,
-            )
+            self._log.warning("no velocity", NO_VELOCITY)
             return
         previous = self._state_ns
         if stamp < previous:
-            self.get_logger().warning(
-                "joint state time went backwards: restarting from the measured configuration"
+            self._log.warning(
+                "time went backwards",
+                "joint state time went backwards: restarting from the measured configuration",
             )
             self.counts["restarts"] += 1
             self._restart()
@@ -605,14 +609,16 @@ class JointController(Node):
         # judged by arrival on this node's steady clock: the stamps are the plant's time
         if time.monotonic() - self._state_arrival > self._state_timeout:
             if not self._silent:
-                self.get_logger().error(
-                    f"no joint state for more than {self._state_timeout} s: not commanding"
+                self._log.error(
+                    "not commanding",
+                    "no joint state for more than {} s: not commanding",
+                    self._state_timeout,
                 )
                 self._silent = True
                 self.counts["stale.stops"] += 1
             return
         if self._silent:
-            self.get_logger().info("joint states are back: commanding again")
+            self._log.info("commanding again", "joint states are back: commanding again")
             self._silent = False
             self.counts["restarts"] += 1
             self._restart()
@@ -694,7 +700,7 @@ class JointController(Node):
             try:
                 step = self.core.step(t, self._q, self._dq, self._state_ns * 1e-9)
             except ValueError as err:  # velocity_source measured, this state has none
-                self.get_logger().error(f"no command: {err}", throttle_duration_sec=1.0)
+                self._log.error("no command", "no command: {}", err)
                 return -1
             if step is held:  # inside a control period: the held torque answers this state
                 self._command.set_stamp(self._state_ns)
@@ -705,20 +711,25 @@ class JointController(Node):
             self._last_step = step
             if step.tau is None:
                 self.counts["dropped.nonfinite_torques"] += 1
-                self.get_logger().error(
-                    f"non-finite torque {step.unclamped} at t={t:.4f} s (q={self._q}, "
-                    f"q̇={self._dq}): no command sent",
-                    throttle_duration_sec=1.0,
+                self._log.error(
+                    "non-finite torque",
+                    "non-finite torque {} at t={:.4f} s (q={}, q̇={}): no command sent",
+                    step.unclamped,
+                    t,
+                    self._q,
+                    self._dq,
                 )
                 return -1
             if beyond_bound(step.unclamped, self.effort_limits, self._reject_factor):
                 # legitimate at saturation (still clamped and sent), but a law this far
                 # beyond the limits points at a bug or a broken input: counted, said
                 self.counts["beyond_bound.torques"] += 1
-                self.get_logger().warning(
-                    f"computed torque {step.unclamped.tolist()} beyond {self._reject_factor:g}"
-                    " × the effort limits (reject_factor): clamped",
-                    throttle_duration_sec=1.0,
+                self._log.warning(
+                    "beyond bound",
+                    lambda: (
+                        f"computed torque {step.unclamped.tolist()} beyond "
+                        f"{self._reject_factor:g} × the effort limits (reject_factor): clamped"
+                    ),
                 )
             listening = self._state_pub.get_subscription_count() > 0  # else: nothing to build
             fill_images(self._command, self._state if listening else None, self._state_ns, step)
@@ -729,8 +740,11 @@ class JointController(Node):
             if listening:
                 self._state_pub.publish(self._state.to_bytes())
         self._say_sampling()
-        if designing:  # gains designed at the first measured configuration
-            self.get_logger().info(f"gains {self._gains_text()} at q0={self.core.q0.tolist()}")
+        if designing:  # at the first measured configuration, again after each restart
+            self._log.info(
+                "gains designed",
+                lambda: f"gains {self._gains_text()} at q0={self.core.q0.tolist()}",
+            )
             self._publish_config(self._values)
         return sent
 
