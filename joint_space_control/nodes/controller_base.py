@@ -39,6 +39,17 @@ Stale states: with the timer, the node stops commanding when no joint state *arr
 the states' stamps, simulation time, with the node clock), and restarts from the measured
 configuration when they come back.
 
+Time going backwards: once (a restarted simulator, seen in the states' stamps) the node
+restarts from the measured configuration; back and forth (two simulators in one domain:
+3 backward jumps within 2 s of wall time, :mod:`~joint_space_control.time_jumps`) it says so
+once at ERROR and does not restart at each jump, for the states' stamps and for the node
+clock (``/clock`` with use_sim_time, seen by a jump callback on the node clock). /diagnostics
+counts both (``joint_states.backward_jumps``, ``clock.backward_jumps``) and is ERROR while
+they last.
+
+Per-tick log lines go through :class:`~joint_space_control.throttle.ThrottledLog`: one line
+a second per kind, with the count held back.
+
 Gains (:func:`~joint_space_control.laws.gains.choose_gains`): ``omega_n`` > 0 designs them
 from ω_n, ζ; else ``kp`` > 0 (with ``kd``) gives them; else the default ω_n (10 rad/s) with
 ``zeta``. A concrete controller may design its gains at the configuration measured at start
@@ -57,6 +68,8 @@ from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import JumpThreshold, TimeJump
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -91,6 +104,7 @@ from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.reference_worker import ReferenceBuilder
 from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
 from joint_space_control.throttle import ThrottledLog
+from joint_space_control.time_jumps import BackwardJumps
 from joint_space_control.trajectories.reference import Trajectory
 
 TRIGGERS = ("auto", "timer", "state")
@@ -103,6 +117,18 @@ COUNTERS = (
     "stale.stops",
     "restarts",
     "beyond_bound.torques",
+    "clock.backward_jumps",
+    "joint_states.backward_jumps",
+)
+#: Said once (ERROR) when the node clock goes backwards repeatedly (time_jumps.py).
+CLOCK_JUMPS = (
+    "/clock goes backwards and forwards: more than one node publishes /clock in this domain "
+    "(two simulators?); run each simulator in a ROS domain of its own (docs/safety.md)"
+)
+#: ... and when the joint states' stamps do.
+STATE_JUMPS = (
+    "joint state time goes backwards and forwards: more than one node publishes {} (two "
+    "simulators?); not restarting at each jump (docs/safety.md)"
 )
 NO_VELOCITY = (
     "rejected joint state: no velocity, and velocity_source is 'measured' (set auto, "
@@ -293,6 +319,10 @@ class JointController(Node):
         self._lock = threading.Lock()  # parameter updates wait for the end of a tick
         # what may recur at every tick or message: one line a second per kind (throttle.py)
         self._log = ThrottledLog(self.get_logger())
+        # time going back once is a restarted simulator; back and forth, two of them
+        self._clock_jumps = BackwardJumps()
+        self._state_jumps = BackwardJumps()
+        self._jumps_said: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._order = JointOrder(self.joints)
@@ -327,6 +357,14 @@ class JointController(Node):
         self._nominal_ns = round(1e9 / rate) if self.trigger == "timer" else -1
         self._timer = None
         self.loop_stats = LoopStatistics()
+        # every backward jump of the node clock (/clock with use_sim_time), in the executor
+        # thread that takes /clock; kept: the callback lives as long as its handle
+        self._clock_jump_handle = self.get_clock().create_jump_callback(
+            JumpThreshold(
+                min_forward=None, min_backward=Duration(nanoseconds=-1), on_clock_change=False
+            ),
+            post_callback=self._on_clock_jump,
+        )
 
         self._pub = self.create_publisher(JointState, "effort_command", CONTROL_PUBLISHER_QOS)
         self._state_pub = self.create_publisher(
@@ -343,9 +381,9 @@ class JointController(Node):
         self.control_path.subscription(
             JointTrajectory, "reference", self._on_reference, REFERENCE_QOS, raw=True
         )
-        self.control_path.subscription(
+        self._state_topic = self.control_path.subscription(
             JointState, "joint_states", self._on_joint_state, CONTROL_QOS, raw=True
-        )
+        ).topic_name
         if self.trigger_parameter != "state":
             self._timer = self.control_path.timer(1.0 / rate, self._on_timer)
         self._diagnostics = LoopDiagnostics(
@@ -449,6 +487,11 @@ class JointController(Node):
         """Why the controller is not doing its job right now (an ERROR on /diagnostics)."""
         if self._silent:
             return f"no joint state for more than {self._state_timeout} s: not commanding"
+        if self._clock_jumps.repeating:
+            return "/clock goes backwards and forwards (two simulators in this domain?)"
+        if self._state_jumps.repeating:
+            topic = self._state_topic
+            return f"joint state time goes backwards and forwards (two publishers of {topic}?)"
         return None
 
     def _model_for(self, values: dict[str, Any]) -> RobotModel:
@@ -554,6 +597,7 @@ class JointController(Node):
 
     def close(self) -> None:
         """Stop the reference thread and process (a reference being built is dropped)."""
+        self._clock_jump_handle.unregister()
         self._reference_thread.shutdown(wait=False, cancel_futures=True)
         self._reference_builder.close()
 
@@ -571,13 +615,17 @@ class JointController(Node):
             return
         previous = self._state_ns
         if stamp < previous:
-            self._log.warning(
-                "time went backwards",
-                "joint state time went backwards: restarting from the measured configuration",
-            )
-            self.counts["restarts"] += 1
-            self._restart()
             previous = -1
+            self.counts["joint_states.backward_jumps"] += 1
+            if self._state_jumps.jumped():  # two plants on one topic: a restart would not help
+                self._say_once("joint_states", STATE_JUMPS.format(self._state_topic))
+            else:  # a restarted simulator
+                self._log.warning(
+                    "time went backwards",
+                    "joint state time went backwards: restarting from the measured configuration",
+                )
+                self.counts["restarts"] += 1
+                self._restart()
         self._q, self._dq, self._state_ns = q, dq, stamp
         self._state_sent_ns = info["source_timestamp"]
         self._state_arrival = time.monotonic()
@@ -628,6 +676,19 @@ class JointController(Node):
         self.loop_stats.tick(
             start, time.perf_counter_ns(), sent - self._state_sent_ns, -1, self._nominal_ns
         )
+
+    def _on_clock_jump(self, jump: TimeJump) -> None:
+        """The node clock went backwards (executor thread): counted; said once when it
+        keeps doing so. Nothing restarts: a restarted simulator is seen in the joint states'
+        stamps (rcl's timer restarts its period by itself)."""
+        self.counts["clock.backward_jumps"] += 1
+        if self._clock_jumps.jumped():
+            self._say_once("clock", CLOCK_JUMPS)
+
+    def _say_once(self, what: str, text: str) -> None:
+        if what not in self._jumps_said:
+            self._jumps_said.add(what)
+            self.get_logger().error(text)
 
     def _restart(self) -> None:
         self._generation += 1  # references being built now are of the time before
