@@ -39,6 +39,17 @@ Stale states: with the timer, the node stops commanding when no joint state *arr
 the states' stamps, simulation time, with the node clock), and restarts from the measured
 configuration when they come back.
 
+Time going backwards: once (a restarted simulator, seen in the states' stamps) the node
+restarts from the measured configuration; back and forth (two simulators in one domain:
+3 backward jumps within 2 s of wall time, :mod:`~joint_space_control.time_jumps`) it says so
+once at ERROR and does not restart at each jump, for the states' stamps and for the node
+clock (``/clock`` with use_sim_time, seen by a jump callback on the node clock). /diagnostics
+counts both (``joint_states.backward_jumps``, ``clock.backward_jumps``) and is ERROR while
+they last.
+
+Per-tick log lines go through :class:`~joint_space_control.throttle.ThrottledLog`: one line
+a second per kind, with the count held back.
+
 Gains (:func:`~joint_space_control.laws.gains.choose_gains`): ``omega_n`` > 0 designs them
 from ω_n, ζ; else ``kp`` > 0 (with ``kd``) gives them; else the default ω_n (10 rad/s) with
 ``zeta``. A concrete controller may design its gains at the configuration measured at start
@@ -57,6 +68,8 @@ from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import JumpThreshold, TimeJump
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -90,6 +103,8 @@ from joint_space_control.ros.plant_mode import PlantModeWatcher
 from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.reference_worker import ReferenceBuilder
 from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
+from joint_space_control.throttle import ThrottledLog
+from joint_space_control.time_jumps import BackwardJumps
 from joint_space_control.trajectories.reference import Trajectory
 
 TRIGGERS = ("auto", "timer", "state")
@@ -102,6 +117,23 @@ COUNTERS = (
     "stale.stops",
     "restarts",
     "beyond_bound.torques",
+    "clock.backward_jumps",
+    "joint_states.backward_jumps",
+)
+#: Said once (ERROR) when the node clock goes backwards repeatedly (time_jumps.py).
+CLOCK_JUMPS = (
+    "/clock goes backwards and forwards: more than one node publishes /clock in this domain "
+    "(two simulators?); put every robot in one sim_bridge world ('robots': docs/robots.md, "
+    "Several robots) or run each simulator in a ROS domain of its own"
+)
+#: ... and when the joint states' stamps do.
+STATE_JUMPS = (
+    "joint state time goes backwards and forwards: more than one node publishes {} (two "
+    "simulators?); not restarting at each jump (docs/safety.md)"
+)
+NO_VELOCITY = (
+    "rejected joint state: no velocity, and velocity_source is 'measured' (set auto, "
+    "backward_difference or filtered_difference to estimate it)"
 )
 
 COMMON_PARAMETERS = (
@@ -286,6 +318,12 @@ class JointController(Node):
         self._state_timeout = params.value(values, "state_timeout")
         self._reject_factor = params.value(values, "reject_factor")
         self._lock = threading.Lock()  # parameter updates wait for the end of a tick
+        # what may recur at every tick or message: one line a second per kind (throttle.py)
+        self._log = ThrottledLog(self.get_logger())
+        # time going back once is a restarted simulator; back and forth, two of them
+        self._clock_jumps = BackwardJumps()
+        self._state_jumps = BackwardJumps()
+        self._jumps_said: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._order = JointOrder(self.joints)
@@ -320,6 +358,14 @@ class JointController(Node):
         self._nominal_ns = round(1e9 / rate) if self.trigger == "timer" else -1
         self._timer = None
         self.loop_stats = LoopStatistics()
+        # every backward jump of the node clock (/clock with use_sim_time), in the executor
+        # thread that takes /clock; kept: the callback lives as long as its handle
+        self._clock_jump_handle = self.get_clock().create_jump_callback(
+            JumpThreshold(
+                min_forward=None, min_backward=Duration(nanoseconds=-1), on_clock_change=False
+            ),
+            post_callback=self._on_clock_jump,
+        )
 
         self._pub = self.create_publisher(JointState, "effort_command", CONTROL_PUBLISHER_QOS)
         self._state_pub = self.create_publisher(
@@ -336,9 +382,9 @@ class JointController(Node):
         self.control_path.subscription(
             JointTrajectory, "reference", self._on_reference, REFERENCE_QOS, raw=True
         )
-        self.control_path.subscription(
+        self._state_topic = self.control_path.subscription(
             JointState, "joint_states", self._on_joint_state, CONTROL_QOS, raw=True
-        )
+        ).topic_name
         if self.trigger_parameter != "state":
             self._timer = self.control_path.timer(1.0 / rate, self._on_timer)
         self._diagnostics = LoopDiagnostics(
@@ -442,6 +488,11 @@ class JointController(Node):
         """Why the controller is not doing its job right now (an ERROR on /diagnostics)."""
         if self._silent:
             return f"no joint state for more than {self._state_timeout} s: not commanding"
+        if self._clock_jumps.repeating:
+            return "/clock goes backwards and forwards (two simulators in this domain?)"
+        if self._state_jumps.repeating:
+            topic = self._state_topic
+            return f"joint state time goes backwards and forwards (two publishers of {topic}?)"
         return None
 
     def _model_for(self, values: dict[str, Any]) -> RobotModel:
@@ -536,7 +587,7 @@ class JointController(Node):
             return
         if isinstance(result, str):
             self.counts["rejected.references"] += 1
-            self.get_logger().warning(f"rejected reference: {result}", throttle_duration_sec=1.0)
+            self._log.warning("rejected reference", "rejected reference: {}", result)
             return
         if arrival is not None and result.start == arrival:
             result = dataclasses.replace(result, start=self._now())
@@ -547,6 +598,7 @@ class JointController(Node):
 
     def close(self) -> None:
         """Stop the reference thread and process (a reference being built is dropped)."""
+        self._clock_jump_handle.unregister()
         self._reference_thread.shutdown(wait=False, cancel_futures=True)
         self._reference_builder.close()
 
@@ -556,24 +608,25 @@ class JointController(Node):
             stamp, (q, dq) = self._reader.read(raw)
         except ValueError as err:
             self.counts["rejected.joint_states"] += 1
-            self.get_logger().warning(f"rejected joint state: {err}", throttle_duration_sec=1.0)
+            self._log.warning("rejected joint state", "rejected joint state: {}", err)
             return
         if not dq.size and self.core.sampling.velocity is VelocitySource.MEASURED:
             self.counts["rejected.joint_states"] += 1
-            self.get_logger().warning(
-                "rejected joint state: no velocity, and velocity_source is 'measured' (set "
-                "auto, backward_difference or filtered_difference to estimate it)",
-                throttle_duration_sec=1.0,
-            )
+            self._log.warning("no velocity", NO_VELOCITY)
             return
         previous = self._state_ns
         if stamp < previous:
-            self.get_logger().warning(
-                "joint state time went backwards: restarting from the measured configuration"
-            )
-            self.counts["restarts"] += 1
-            self._restart()
             previous = -1
+            self.counts["joint_states.backward_jumps"] += 1
+            if self._state_jumps.jumped():  # two plants on one topic: a restart would not help
+                self._say_once("joint_states", STATE_JUMPS.format(self._state_topic))
+            else:  # a restarted simulator
+                self._log.warning(
+                    "time went backwards",
+                    "joint state time went backwards: restarting from the measured configuration",
+                )
+                self.counts["restarts"] += 1
+                self._restart()
         self._q, self._dq, self._state_ns = q, dq, stamp
         self._state_sent_ns = info["source_timestamp"]
         self._state_arrival = time.monotonic()
@@ -605,14 +658,16 @@ class JointController(Node):
         # judged by arrival on this node's steady clock: the stamps are the plant's time
         if time.monotonic() - self._state_arrival > self._state_timeout:
             if not self._silent:
-                self.get_logger().error(
-                    f"no joint state for more than {self._state_timeout} s: not commanding"
+                self._log.error(
+                    "not commanding",
+                    "no joint state for more than {} s: not commanding",
+                    self._state_timeout,
                 )
                 self._silent = True
                 self.counts["stale.stops"] += 1
             return
         if self._silent:
-            self.get_logger().info("joint states are back: commanding again")
+            self._log.info("commanding again", "joint states are back: commanding again")
             self._silent = False
             self.counts["restarts"] += 1
             self._restart()
@@ -622,6 +677,19 @@ class JointController(Node):
         self.loop_stats.tick(
             start, time.perf_counter_ns(), sent - self._state_sent_ns, -1, self._nominal_ns
         )
+
+    def _on_clock_jump(self, jump: TimeJump) -> None:
+        """The node clock went backwards (executor thread): counted; said once when it
+        keeps doing so. Nothing restarts: a restarted simulator is seen in the joint states'
+        stamps (rcl's timer restarts its period by itself)."""
+        self.counts["clock.backward_jumps"] += 1
+        if self._clock_jumps.jumped():
+            self._say_once("clock", CLOCK_JUMPS)
+
+    def _say_once(self, what: str, text: str) -> None:
+        if what not in self._jumps_said:
+            self._jumps_said.add(what)
+            self.get_logger().error(text)
 
     def _restart(self) -> None:
         self._generation += 1  # references being built now are of the time before
@@ -694,7 +762,7 @@ class JointController(Node):
             try:
                 step = self.core.step(t, self._q, self._dq, self._state_ns * 1e-9)
             except ValueError as err:  # velocity_source measured, this state has none
-                self.get_logger().error(f"no command: {err}", throttle_duration_sec=1.0)
+                self._log.error("no command", "no command: {}", err)
                 return -1
             if step is held:  # inside a control period: the held torque answers this state
                 self._command.set_stamp(self._state_ns)
@@ -705,20 +773,25 @@ class JointController(Node):
             self._last_step = step
             if step.tau is None:
                 self.counts["dropped.nonfinite_torques"] += 1
-                self.get_logger().error(
-                    f"non-finite torque {step.unclamped} at t={t:.4f} s (q={self._q}, "
-                    f"q̇={self._dq}): no command sent",
-                    throttle_duration_sec=1.0,
+                self._log.error(
+                    "non-finite torque",
+                    "non-finite torque {} at t={:.4f} s (q={}, q̇={}): no command sent",
+                    step.unclamped,
+                    t,
+                    self._q,
+                    self._dq,
                 )
                 return -1
             if beyond_bound(step.unclamped, self.effort_limits, self._reject_factor):
                 # legitimate at saturation (still clamped and sent), but a law this far
                 # beyond the limits points at a bug or a broken input: counted, said
                 self.counts["beyond_bound.torques"] += 1
-                self.get_logger().warning(
-                    f"computed torque {step.unclamped.tolist()} beyond {self._reject_factor:g}"
-                    " × the effort limits (reject_factor): clamped",
-                    throttle_duration_sec=1.0,
+                self._log.warning(
+                    "beyond bound",
+                    lambda: (
+                        f"computed torque {step.unclamped.tolist()} beyond "
+                        f"{self._reject_factor:g} × the effort limits (reject_factor): clamped"
+                    ),
                 )
             listening = self._state_pub.get_subscription_count() > 0  # else: nothing to build
             fill_images(self._command, self._state if listening else None, self._state_ns, step)
@@ -729,8 +802,11 @@ class JointController(Node):
             if listening:
                 self._state_pub.publish(self._state.to_bytes())
         self._say_sampling()
-        if designing:  # gains designed at the first measured configuration
-            self.get_logger().info(f"gains {self._gains_text()} at q0={self.core.q0.tolist()}")
+        if designing:  # at the first measured configuration, again after each restart
+            self._log.info(
+                "gains designed",
+                lambda: f"gains {self._gains_text()} at q0={self.core.q0.tolist()}",
+            )
             self._publish_config(self._values)
         return sent
 

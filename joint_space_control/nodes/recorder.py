@@ -53,6 +53,7 @@ from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelecti
 from joint_space_control.ros import node_main
 from joint_space_control.ros import parameters as params
 from joint_space_control.ros.control_path import ControlPath, spin_node
+from joint_space_control.throttle import ThrottledLog
 
 #: Messages a subscription queues while the recorder is busy writing.
 QUEUE_DEPTH = 10000
@@ -166,6 +167,7 @@ class Recorder(Node):
         self._recording: dict[str, tuple[Subscription, QoSProfile]] = {}
         self._skipped: set[str] = set()
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self._log = ThrottledLog(self.get_logger())  # one line a second per kind
         self.control_path = ControlPath(self)
         try:
             self._discover()
@@ -230,7 +232,8 @@ class Recorder(Node):
         msg_class = _message_class(topic.msgtype)
         clock = self.get_clock()
         bag = self.bag
-        logger = self.get_logger()
+        log = self._log
+        malformed = ("malformed", topic.name)  # a kind per topic
 
         def on_message(raw: bytes, info: Any) -> None:
             try:
@@ -239,10 +242,7 @@ class Recorder(Node):
                 self.write_failed(err)
                 return
             if not written and bag.error is None:
-                logger.warning(
-                    f"dropped a malformed {topic.msgtype} on {topic.name}",
-                    throttle_duration_sec=1.0,
-                )
+                log.warning(malformed, "dropped a malformed {} on {}", topic.msgtype, topic.name)
 
         sub = self.control_path.subscription(
             msg_class, topic.name, on_message, qos, raw=True, drain=True

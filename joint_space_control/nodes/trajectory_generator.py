@@ -72,6 +72,7 @@ from joint_space_control.ros.messages import (
     ns_to_stamp,
 )
 from joint_space_control.ros.node_main import run_node
+from joint_space_control.throttle import ThrottledLog
 from joint_space_control.trajectories import shapes
 from joint_space_control.trajectories.reference import Trajectory
 
@@ -325,6 +326,7 @@ class TrajectoryGenerator(Node):
         self._startup_timer = None
         self._state_sub = None
         self._current: np.ndarray | None = None
+        self._log = ThrottledLog(self.get_logger())  # one line a second per kind
         if values["publish_on_start"]:
             self._startup_timer = self.create_timer(
                 STARTUP_POLL, self._on_startup_poll, clock=Clock(clock_type=ClockType.STEADY_TIME)
@@ -426,7 +428,7 @@ class TrajectoryGenerator(Node):
         try:
             self._current = joint_positions(msg, self._order)
         except ValueError as err:
-            self.get_logger().warning(f"rejected joint state: {err}", throttle_duration_sec=1.0)
+            self._log.warning("rejected joint state", "rejected joint state: {}", err)
 
     def _on_startup_poll(self) -> None:
         config = self.config

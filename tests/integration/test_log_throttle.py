@@ -1,0 +1,96 @@
+"""Logs stay readable under any fault (issue 17, item 2b): a controller fed a fault at every
+message for seconds logs at most one line a second per kind, and a later line says how many
+it held back. Counts of lines are compared, never how long anything took: each fault's lines
+are bounded by the wall time from its first message to the answer to a valid state sent
+after its last one (all of it handled by then)."""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+
+import pytest
+from rclpy.duration import Duration
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+
+from joint_space_control.ros.messages import ns_to_stamp
+
+from .test_faults import MS, ROBOT, J, joint_state, reference, rig  # noqa: F401 (rig: a fixture)
+
+pytestmark = pytest.mark.integration
+
+SECONDS = 3.0  # of each fault
+PERIOD = 0.002  # [s] between two bad messages (~500 Hz)
+HELD_BACK = re.compile(r"\((\d+) more since the last report\)$")
+
+
+def test_each_recurring_fault_of_a_controller_logs_one_line_a_second(rig):  # noqa: F811
+    node = "inverse_dynamics_controller"
+    # measured: a state without velocities is bad input
+    rig.group.start(
+        node, {"robot": "planar_2dof", "trigger": "state", "velocity_source": "measured"}
+    )
+    states = rig.publisher(JointState, "joint_states", subscribers=2)  # + the probe
+    refs = rig.publisher(JointTrajectory, "reference")
+    rig.wait_for_publisher("/effort_command")
+    stamp = [0]
+
+    def next_stamp() -> int:
+        stamp[0] += 2 * MS
+        return stamp[0]
+
+    def answered_state() -> None:
+        """A valid state, answered: every message sent before it has been handled."""
+        sent = next_stamp()
+        states.publish(joint_state(sent))
+        rig.probe.spin_until(
+            lambda: rig.answered(sent), 20.0, f"command {sent}", rig.group.check_alive
+        )
+
+    def flood(pub, make) -> float:
+        """``make()``'s messages for SECONDS; returns the wall time until all were handled."""
+        start = time.monotonic()
+        while time.monotonic() - start < SECONDS:
+            pub.publish(make())
+            time.sleep(PERIOD)
+        if pub is refs:
+            assert pub.wait_for_all_acked(Duration(seconds=20.0))
+        rig.group.check_alive()
+        answered_state()
+        return time.monotonic() - start
+
+    def no_velocity() -> JointState:
+        msg = JointState(name=list(J), position=[0.1, -0.2])
+        msg.header.stamp = ns_to_stamp(next_stamp())
+        return msg
+
+    answered_state()
+    faults = {  # the text every line of the kind starts with → its messages
+        "rejected joint state: missing joints": (
+            states,
+            lambda: joint_state(next_stamp(), names=["joint1"], q=(0.1,), dq=(0.0,)),
+        ),
+        "rejected joint state: non-finite": (
+            states,
+            lambda: joint_state(next_stamp(), q=(math.nan, 0.0)),
+        ),
+        "rejected joint state: no velocity": (states, no_velocity),
+        "rejected reference:": (refs, lambda: reference([(0.5, (4.0, 0.0))])),  # beyond limits
+        # finite but absurd velocities: a torque far beyond 2 × the limits (clamped, said)
+        "× the effort limits (reject_factor): clamped": (
+            states,
+            lambda: joint_state(next_stamp(), dq=(1e3, -1e3)),
+        ),
+        # the Coriolis term overflows: no command
+        "non-finite torque": (states, lambda: joint_state(next_stamp(), dq=(1e200, 1e200))),
+    }
+    took = {text: flood(pub, make) for text, (pub, make) in faults.items()}
+
+    log = rig.group.nodes[node].log().splitlines()
+    for text, seconds in took.items():
+        lines = [line for line in log if text in line]
+        assert 2 <= len(lines) <= math.ceil(seconds) + 1, (text, seconds, lines)
+        held = [HELD_BACK.search(line) for line in lines[1:]]
+        assert any(m is not None and int(m.group(1)) > 0 for m in held), (text, lines)
