@@ -78,6 +78,7 @@ from joint_space_control.ros.loop_statistics import LoopStatistics
 from joint_space_control.ros.messages import COMMAND_QOS, CONTROL_PUBLISHER_QOS
 from joint_space_control.ros.node_main import run_node
 from joint_space_control.ros.realtime_threads import RealtimeThreads
+from joint_space_control.throttle import ThrottledLog
 from sim_bridge import pacing
 from sim_bridge.ownership import ARRAY_COMMANDER
 from sim_bridge.parameters import (
@@ -139,6 +140,8 @@ class SimBridge(Node):
         self.reject_factor = params.value(v, "reject_factor")
         republish = params.value(v, "republish_period")
         self.lock = threading.Lock()  # world and time, shared with the realtime thread
+        # what may recur at every tick or message: one line a second per kind (throttle.py)
+        self.log = ThrottledLog(self.get_logger())
         self.world = World(physics_rate, gui=bool(v["gui"]))
         self.robots: list[SimRobot] = []
         try:

@@ -123,6 +123,11 @@ class SimRobot:
     def _log(self) -> Any:
         return self.node.get_logger()
 
+    def _throttled(self, kind: str, text: Any, *args: object) -> None:
+        """A warning that may recur at every message: one line a second per kind and robot,
+        with how many were held back (joint_space_control.throttle)."""
+        self.node.log.warning((self.name, kind), text, *args)
+
     def _say(self, text: str) -> str:
         """A log line about this robot: named when the world has several."""
         return f"{self.name}: {text}" if self.name else text
@@ -233,9 +238,7 @@ class SimRobot:
             stamp, (tau,) = self.effort_reader.read(raw)
         except ValueError as err:
             self.counts["rejected.commands"] += 1
-            self._log().warning(
-                self._say(f"rejected effort command: {err}"), throttle_duration_sec=1.0
-            )
+            self._throttled("effort", self._say("rejected effort command: {}"), err)
             return None
         return None if self._absurd(tau) else (stamp, tau)
 
@@ -245,9 +248,7 @@ class SimRobot:
             tau = float_array(msg, self.n)
         except ValueError as err:
             self.counts["rejected.commands"] += 1
-            self._log().warning(
-                self._say(f"rejected command array: {err}"), throttle_duration_sec=1.0
-            )
+            self._throttled("array", self._say("rejected command array: {}"), err)
             return None
         return None if self._absurd(tau) else tau
 
@@ -258,12 +259,12 @@ class SimRobot:
         if not beyond_bound(tau, self.plant.effort_limits, factor):
             return False
         self.counts["rejected.commands"] += 1
-        self._log().warning(
-            self._say(
+        self._throttled(
+            "absurd",
+            lambda: self._say(
                 f"rejected command {tau.tolist()}: beyond {factor:g} × the effort "
                 f"limits {self.plant.effort_limits.tolist()} (reject_factor)"
             ),
-            throttle_duration_sec=1.0,
         )
         return True
 
@@ -274,13 +275,13 @@ class SimRobot:
             return True
         self.counts["rejected.foreign_commands"] += 1
         owner = self.ownership.owner
-        self._log().warning(
-            self._say(
+        self._throttled(
+            "foreign",
+            lambda: self._say(
                 f"rejected a command from {sender or '(unnamed)'!r}: {owner or '(unnamed)'!r} "
                 "commands this plant (it is freed when its commands stop for command_timeout, "
                 "when it leaves, or by ~/release)"
             ),
-            throttle_duration_sec=1.0,
         )
         return False
 
@@ -309,19 +310,24 @@ class SimRobot:
                 self.plant.hold_wrench(msg.header.frame_id, (f.x, f.y, f.z), (mu.x, mu.y, mu.z))
         except ValueError as err:
             self.counts["rejected.wrenches"] += 1
-            self._log().warning(self._say(f"rejected wrench: {err}"), throttle_duration_sec=1.0)
+            self._throttled("wrench", self._say("rejected wrench: {}"), err)
 
     # -- realtime ----------------------------------------------------------------------
     def begin_tick(self, t_ns: int, timeout: float) -> None:
         """Torque control with a fresh command, else the brakes (realtime, lock held)."""
         if self.tau is not None and (t_ns - self.tau_t_ns) * 1e-9 <= timeout:
             if self.braking:
-                self._log().info(self._say("valid commands: torque control"))
+                self.node.log.info(
+                    (self.name, "torque"), lambda: self._say("valid commands: torque control")
+                )
                 self.braking = self.timed_out = False
             self.plant.begin_torque(self.tau)
             return
         if not self.braking:
-            self._log().warning(self._say(f"no valid command for {timeout} s: brakes engaged"))
+            self.node.log.warning(
+                (self.name, "brakes"),
+                lambda: self._say(f"no valid command for {timeout} s: brakes engaged"),
+            )
             self.braking = self.timed_out = True
             self.counts["brake.engaged"] += 1
         self.plant.begin_brake()

@@ -94,3 +94,64 @@ def test_each_recurring_fault_of_a_controller_logs_one_line_a_second(rig):  # no
         assert 2 <= len(lines) <= math.ceil(seconds) + 1, (text, seconds, lines)
         held = [HELD_BACK.search(line) for line in lines[1:]]
         assert any(m is not None and int(m.group(1)) > 0 for m in held), (text, lines)
+
+
+def test_each_recurring_fault_of_the_plant_logs_one_line_a_second(rig):  # noqa: F811
+    """sim_bridge (realtime, so that it takes every message without a controller): bad,
+    absurd and foreign effort commands, bad arrays and bad wrenches at ~500 Hz for seconds
+    each, then a valid command; per kind at most one line a second, with the count held
+    back."""
+    from geometry_msgs.msg import WrenchStamped
+    from std_msgs.msg import Float64MultiArray
+
+    rig.group.start("sim_bridge", {"robot": ROBOT, "mode": "realtime", "command_timeout": 5.0})
+    commands = rig.publisher(JointState, "effort_command", subscribers=2)  # + the probe
+    arrays = rig.publisher(Float64MultiArray, "/sim_bridge/commands")
+    wrenches = rig.publisher(WrenchStamped, "/sim_bridge/wrench")
+
+    owner = rig.probe.node.get_fully_qualified_name()  # a node on the graph: it stays owner
+
+    def command(effort, frame_id=owner) -> JointState:
+        msg = JointState(name=list(J), effort=list(effort))
+        msg.header.frame_id = frame_id
+        return msg
+
+    def wrench() -> WrenchStamped:
+        msg = WrenchStamped()
+        msg.header.frame_id = "no_such_link"
+        msg.wrench.force.x = 1.0
+        return msg
+
+    commands.publish(command((0.0, 0.0)))  # the owner claims the plant
+    rig.diagnostics("sim_bridge", lambda s: s["owner"] == owner)
+    faults = {
+        "rejected effort command:": (commands, lambda: command((math.nan, 0.0))),
+        "beyond 2 × the effort limits": (commands, lambda: command((1e9, 0.0))),
+        "rejected a command from '/intruder'": (
+            commands,
+            lambda: command((0.0, 0.0), "/intruder"),
+        ),
+        "rejected command array:": (arrays, lambda: Float64MultiArray(data=[0.0])),
+        "rejected wrench:": (wrenches, wrench),
+    }
+    took = {}
+    for text, (pub, make) in faults.items():
+        start = time.monotonic()
+        while time.monotonic() - start < SECONDS:
+            pub.publish(make())
+            if text != "rejected a command from '/intruder'":
+                commands.publish(command((0.0, 0.0)))  # the owner keeps the plant
+            time.sleep(PERIOD)
+        rig.probe.spin_for(0.5)  # the plant takes what is queued (drained, depth 16)
+        rig.group.check_alive()
+        took[text] = time.monotonic() - start
+    status = rig.diagnostics("sim_bridge", lambda s: True)
+    assert status["rejected.commands"] > 100 and status["rejected.wrenches"] > 100, status
+    assert status["rejected.foreign_commands"] > 100, status
+
+    log = rig.group.nodes["sim_bridge"].log().splitlines()
+    for text, seconds in took.items():
+        lines = [line for line in log if text in line]
+        assert 2 <= len(lines) <= math.ceil(seconds) + 1, (text, seconds, lines)
+        held = [HELD_BACK.search(line) for line in lines[1:]]
+        assert any(m is not None and int(m.group(1)) > 0 for m in held), (text, lines)
