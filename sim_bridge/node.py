@@ -56,6 +56,8 @@ a third, all under one lock.
 from __future__ import annotations
 
 import array
+import os
+import signal
 import threading
 import time
 from collections.abc import Mapping
@@ -107,6 +109,13 @@ STALL_REPEAT = 10.0
 #: At start, how long [s] discovery is given (from the node's creation) to show another
 #: publisher of /clock before this one publishes its own.
 CLOCK_DISCOVERY = 0.5
+#: ... and how long [s] one discovered later still counts as found at start (a loaded
+#: machine discovers slowly): the node then stops with the same one line and exit code 2.
+CLOCK_REFUSAL = 5.0
+#: How long [s] a young simulator listens to /clock for another one running ahead of it.
+CLOCK_ANSWER = 3.0
+#: ... and by how much [ns] the other's time must be ahead of its own.
+CLOCK_AHEAD_NS = 200_000_000
 
 
 class SimBridge(Node):
@@ -157,6 +166,11 @@ class SimBridge(Node):
             else:  # from the side: robots placed along x stand side by side
                 frame_view(self.world.client, bodies, yaw=0.0, pitch=-15.0)
         self._refuse_second_clock(created)
+        self._created = created
+        self._foreign_clock = None  # a /clock subscription while young, to compare times
+        self._listening_since = 0.0
+        self._clock_ahead = False
+        self.exit_error: str | None = None  # why the node stops by itself (run_node: exit 2)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._t_ns = 0
@@ -243,7 +257,9 @@ class SimBridge(Node):
 
     # -- one clock per graph -----------------------------------------------------------
     def _clock_publishers(self) -> list[str]:
-        """The nodes other than this one that publish /clock."""
+        """The nodes other than this one that publish /clock. A publisher with this node's
+        own name is taken for a previous instance of it that was killed (its participant
+        stays in the graph for a while after a SIGKILL): a restarted simulator starts."""
         me = self.get_fully_qualified_name()
         return sorted(
             {
@@ -261,13 +277,7 @@ class SimBridge(Node):
         others = self._clock_publishers()
         if others:
             self.world.close()
-            raise ValueError(
-                f"{', '.join(others)} already publish(es) /clock in this ROS domain: two "
-                "clocks would make every use_sim_time node jump between two simulations. "
-                "Put every robot in one world instead (one sim_bridge with 'robots': "
-                "docs/robots.md, Several robots; example config/two_robots.yaml) or run "
-                "the second simulation in another ROS_DOMAIN_ID"
-            )
+            raise ValueError(second_clock(others))
 
     # -- parameters --------------------------------------------------------------------
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
@@ -389,7 +399,7 @@ class SimBridge(Node):
             who = f"{robot.name}: " if robot.name else ""
             if commanders:
                 lines.append(
-                    f"{who}{', '.join(names)} publish(es) {robot.topics['effort_command']}: "
+                    f"{who}{', '.join(names)} publish(es) {robot.names['effort_command']}: "
                     "likely a controller with trigger: timer and use_sim_time:=true, which "
                     "waits for /clock, which a lockstep plant advances only on commands (use "
                     "trigger:=state or auto), or one that stamps its commands with another "
@@ -400,13 +410,13 @@ class SimBridge(Node):
                     {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in listeners}
                 )
                 lines.append(
-                    f"{who}{', '.join(subscribers)} subscribe(s) {robot.topics['joint_states']} "
-                    f"but nobody publishes {robot.topics['effort_command']} (a controller "
+                    f"{who}{', '.join(subscribers)} subscribe(s) {robot.names['joint_states']} "
+                    f"but nobody publishes {robot.names['effort_command']} (a controller "
                     "that failed to start, or one remapped to another command topic?)"
                 )
             else:
                 lines.append(
-                    f"{who}no controller: nobody publishes {robot.topics['effort_command']} "
+                    f"{who}no controller: nobody publishes {robot.names['effort_command']} "
                     "(in lockstep the world steps when every robot has answered)"
                 )
         # again after STALL_REPEAT, or at once when other commanders are connected
@@ -492,14 +502,47 @@ class SimBridge(Node):
                 who = f"{robot.name}: " if robot.name else ""
                 self.get_logger().info(f"{who}{left or '(unnamed)'!r} left: the plant is free")
         if not self._clock_said:
-            others = self._clock_publishers()
-            if others:
-                self._clock_said = True
-                self.get_logger().error(
-                    f"{', '.join(others)} publish(es) /clock too: use_sim_time nodes now see "
-                    "two clocks. One simulator per ROS domain (several robots: one world, "
-                    "docs/robots.md, Several robots)"
-                )
+            self._check_clock()
+
+    def _check_clock(self) -> None:
+        """Another /clock publisher (executor thread): a simulator younger than
+        CLOCK_REFUSAL that hears a /clock ahead of its own time (the other has run longer)
+        stops (one line, exit code 2); otherwise it says so once at ERROR."""
+        others = self._clock_publishers()
+        if not others:
+            if self._foreign_clock is not None:  # it went (stopped itself): listen no more
+                self.control_path.destroy_subscription(self._foreign_clock)
+                self._foreign_clock = None
+            return
+        young = time.monotonic() - self._created < CLOCK_REFUSAL
+        if young and self._foreign_clock is None:  # listen: the older one runs ahead
+            self._foreign_clock = self.create_subscription(Clock, "/clock", self._on_clock, 10)
+            self._listening_since = time.monotonic()
+            return
+        if not self._clock_ahead and self._foreign_clock is not None:
+            if time.monotonic() - self._listening_since < CLOCK_ANSWER:
+                return
+        self._clock_said = True
+        if self._foreign_clock is not None:
+            self.control_path.destroy_subscription(self._foreign_clock)
+            self._foreign_clock = None
+        if self._clock_ahead:
+            self.exit_error = second_clock(others)  # found at start, late: refused
+            # stopped as by a signal (the clean path: the context goes down first, then
+            # the threads; run_node then says why, exit code 2)
+            os.kill(os.getpid(), signal.SIGTERM)
+        else:
+            self.get_logger().error(
+                f"{', '.join(others)} publish(es) /clock too: use_sim_time nodes now see "
+                "two clocks. One simulator per ROS domain (several robots: one world, "
+                "docs/robots.md, Several robots)"
+            )
+
+    def _on_clock(self, msg: Clock) -> None:
+        """A /clock message: this node's own (at or before its time) or another's."""
+        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        if t_ns > self._t_ns + CLOCK_AHEAD_NS:
+            self._clock_ahead = True
 
     def _on_release(self, robot: SimRobot, response: Trigger.Response) -> Any:
         with self.lock:
@@ -596,6 +639,16 @@ class SimBridge(Node):
         if thread is not None:
             thread.join(timeout=1.0)
         self.world.close()
+
+
+def second_clock(others: list[str]) -> str:
+    """Why a second simulator in a ROS domain does not start."""
+    return (
+        f"{', '.join(others)} already publish(es) /clock in this ROS domain: two clocks would "
+        "make every use_sim_time node jump between two simulations. Put every robot in one "
+        "world instead (one sim_bridge with 'robots': docs/robots.md, Several robots; example "
+        "config/two_robots.yaml) or run the second simulation in another ROS_DOMAIN_ID"
+    )
 
 
 def main(args: list[str] | None = None) -> None:

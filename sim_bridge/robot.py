@@ -107,6 +107,8 @@ class SimRobot:
         self._q, self._dq = np.zeros(n), np.zeros(n)  # true state, when measured
         self._truth = JointStateImage(self.joints)
         self.measured_ns: int | None = None  # time of the state in the image
+        #: the topics as a log line names them (relative, as given)
+        self.names = {t: prefix + t for t in ("joint_states", "effort_command")}
         self.topics = {
             "joint_states": node.resolve_topic_name(prefix + "joint_states"),
             "effort_command": node.resolve_topic_name(prefix + "effort_command"),

