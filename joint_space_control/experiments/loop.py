@@ -14,7 +14,6 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +22,7 @@ import numpy as np
 from joint_space_control.experiments.domains import lease_domain
 from joint_space_control.experiments.probe import LoopProbe, in_namespace
 from joint_space_control.experiments.processes import ProcessGroup
+from joint_space_control.experiments.scenario import RobotSetup
 from joint_space_control.recording.selection import world_topics
 
 #: After the last state of a run, the nodes stop once the bag has not grown for this long
@@ -31,32 +31,21 @@ RECORD_QUIET = 1.5
 RECORD_SETTLE_MAX = 20.0
 
 
-@dataclass(frozen=True)
-class LoopRobot:
-    """One robot of a world of several: its name (the namespace of its topics and of its
-    controller), description, controller executable and parameters, and its own sim_bridge
-    parameters (``initial_positions``, ``base_position``, the plant's, …)."""
-
-    namespace: str
-    robot: str
-    controller: str = "pd_gravity_controller"
-    controller_params: Mapping[str, Any] = field(default_factory=dict)
-    plant_params: Mapping[str, Any] = field(default_factory=dict)
-
-
 class ClosedLoop:
     """sim_bridge (lockstep) + one controller per robot (answering every state) + a probe,
     and a recorder writing the bag ``record`` when one is given.
 
     ``robot``: the one robot's name (with ``controller`` and ``controller_params``;
     ``sim_params`` then holds its sim_bridge parameters and the world's), or the robots of a
-    world of several (``sim_params``: the world's parameters only)."""
+    world of several, each in its namespace with its controller, its parameters and its own
+    sim_bridge parameters (``plant``; ``sim_params``: the world's only; their references
+    are the caller's to send)."""
 
     def __init__(
         self,
         workdir: Path,
         domain_id: int | None,
-        robot: str | Sequence[LoopRobot],
+        robot: str | Sequence[RobotSetup],
         controller: str = "pd_gravity_controller",
         controller_params: Mapping[str, Any] | None = None,
         sim_params: Mapping[str, Any] | None = None,
@@ -64,14 +53,16 @@ class ClosedLoop:
         recorder_params: Mapping[str, Any] | None = None,
     ) -> None:
         if isinstance(robot, str):
-            self.robots = [LoopRobot("", robot, controller, controller_params or {})]
+            self.robots = [
+                RobotSetup("", robot, {}, controller, dict(controller_params or {}), {})
+            ]
             world = {"robot": robot, **(sim_params or {})}
         else:
             self.robots = list(robot)
-            names = [r.namespace for r in self.robots]
+            names = [r.name for r in self.robots]
             world = {
                 "robots": names,
-                **{r.namespace: {"robot": r.robot, **r.plant_params} for r in self.robots},
+                **{r.name: {"robot": r.robot, **r.plant} for r in self.robots},
                 **(sim_params or {}),
             }
             # each robot's topics, in its namespace
@@ -94,19 +85,19 @@ class ClosedLoop:
             for r in self.robots:
                 self.group.start(
                     r.controller,
-                    {"robot": r.robot, **r.controller_params, "trigger": "state"},
-                    namespace=r.namespace,
+                    {"robot": r.robot, **r.parameters, "trigger": "state"},
+                    namespace=r.name,
                 )
             self.probe = LoopProbe(
                 domain_id,
                 name=f"jsc_probe_{domain_id}",
-                namespaces=[r.namespace for r in self.robots],
+                namespaces=[r.name for r in self.robots],
             )
             for r in self.robots:
                 # the controller itself subscribed (a recorder alone satisfies the counts)
                 self.probe.wait_for_subscriber(
                     r.controller,
-                    _absolute(r.namespace, "reference", "joint_states"),
+                    _absolute(r.name, "reference", "joint_states"),
                     check=self.group.check_alive,
                 )
             self.probe.wait_for_graph(
@@ -117,7 +108,7 @@ class ClosedLoop:
                     self.probe.wait_for_subscriber(
                         "recorder",
                         _absolute(
-                            r.namespace,
+                            r.name,
                             "joint_states",
                             "effort_command",
                             "reference",

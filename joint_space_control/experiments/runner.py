@@ -26,7 +26,7 @@ from typing import Any
 from joint_space_control.analysis.bag import BagReader, ControllerState, JointStates, joint_states
 from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
-from joint_space_control.experiments.loop import ClosedLoop, LoopRobot
+from joint_space_control.experiments.loop import ClosedLoop
 from joint_space_control.experiments.probe import in_namespace
 from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
 from joint_space_control.model.dynamics import RobotModel
@@ -174,10 +174,7 @@ def _closed_loop(
             sim_params=sim_params,
             record=bag,
         )
-    robots = [
-        LoopRobot(s.name, s.robot, s.controller, s.parameters, s.plant) for s in scenario.robots
-    ]
-    return ClosedLoop(workdir, None, robots, sim_params=sim_params, record=bag)
+    return ClosedLoop(workdir, None, scenario.robots, sim_params=sim_params, record=bag)
 
 
 def _events(results: list[RunResult]) -> list[dict[str, Any]] | dict[str, list[dict[str, Any]]]:

@@ -88,8 +88,15 @@ _TOP_KEYS = {
 #: With ``robots``: what each robot of the world sets (``robot``, ``controller`` and
 #: ``reference`` required), and the top-level keys that only one robot can have.
 _ROBOT_KEYS = {"robot", "plant", "controller", "parameters", "reference"}
-_ONE_ROBOT_KEYS = ("robot", "controller", "parameters", "reference", "changes", "variants")
-_ONE_ROBOT_KEYS += ("figures",)
+_ONE_ROBOT_KEYS = (
+    "robot",
+    "controller",
+    "parameters",
+    "reference",
+    "changes",
+    "variants",
+    "figures",
+)
 _ROBOT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # sim_bridge's rule: a namespace
 
 
