@@ -3,7 +3,9 @@
 Files per experiment ``<out>/<name>/``: one run directory per variant (``bag/``,
 ``report/``, ``logs/``, ``events.json``), ``result.json`` (the checks with their numbers),
 ``summary.md``, ``sweep.png`` for a sweep, and the figures the scenario names (``figures``,
-:mod:`~joint_space_control.experiments.figures`).
+:mod:`~joint_space_control.experiments.figures`). A world of several robots is one run
+(one bag, one ``report/`` with every controller) judged per robot: each check sees each
+robot as a run of its own, labelled with the robot's name.
 """
 
 from __future__ import annotations
@@ -21,8 +23,10 @@ from joint_space_control.experiments.runner import RunResult, run_scenario
 from joint_space_control.experiments.scenario import Scenario
 from joint_space_control.json_values import jsonable
 
-#: Questions 1–8 are THEORY.md §5's experiments; from 9 on, §4's practical specifications.
+#: Questions 1–8 are THEORY.md §5's experiments; 9–14 §4's practical specifications; from
+#: 15 on, practice beyond the theory (several robots in one world).
 LAST_SECTION5_QUESTION = 8
+LAST_SECTION4_QUESTION = 14
 
 
 @dataclass
@@ -91,6 +95,12 @@ def run_experiment(
 
 def _result_json(result: ExperimentResult, short: bool) -> dict:
     s = result.scenario
+    runs = []
+    for r in result.runs:
+        run = {"label": r.label, "dir": str(r.out), "error": r.error, "events": r.events}
+        if r.namespace:  # a robot of a world of several
+            run.update(robot=r.scenario.robot, controller=r.scenario.controller)
+        runs.append(run)
     return {
         "scenario": s.name,
         "title": s.title,
@@ -100,10 +110,7 @@ def _result_json(result: ExperimentResult, short: bool) -> dict:
         "short": short,
         "passed": result.passed,
         "errors": result.errors,
-        "runs": [
-            {"label": r.label, "dir": str(r.out), "error": r.error, "events": r.events}
-            for r in result.runs
-        ],
+        "runs": runs,
         "checks": [jsonable(o.__dict__) for o in result.outcomes],  # NaN, ±inf: null
     }
 
@@ -119,11 +126,15 @@ def summary_markdown(result: ExperimentResult, base: Path, figures: Path | None 
     lines = [f"### {s.question}. {s.title}", ""]
     if s.notes:
         lines += [s.notes.strip(), ""]
-    lines += [
-        f"`{s.name}`: {s.robot}, `{s.controller}`, "
-        + (f"{len(result.runs)} runs over {s.variants.name}" if s.variants else "one run"),
-        "",
-    ]
+    if s.robots:
+        world = ", ".join(f"`{r.name}` ({r.robot}, `{r.controller}`)" for r in s.robots)
+        lines += [f"`{s.name}`: {len(s.robots)} robots in one world, one run: {world}", ""]
+    else:
+        lines += [
+            f"`{s.name}`: {s.robot}, `{s.controller}`, "
+            + (f"{len(result.runs)} runs over {s.variants.name}" if s.variants else "one run"),
+            "",
+        ]
     for o in result.outcomes:
         lines.append(f"- **{_verdict(o.passed)}** ({o.check}): {o.text}")
     for e in result.errors:
@@ -155,11 +166,11 @@ def _key_plots(result: ExperimentResult) -> list[Path]:
     if result.figures:  # the scenario's own figures say what its runs show
         return list(result.figures)
     sweep = result.out / "sweep.png"
-    if sweep.is_file():
-        standard = [sweep] + ([ok[-1].out / "report" / "positions.png"] if ok else [])
-    else:
-        standard = [ok[0].out / "report" / "positions.png"] if ok else []
-    return result.figures + standard
+    if sweep.is_file():  # and the last run's positions
+        standard, shown = [sweep], ok[-1:]
+    else:  # the run's positions: of its one robot, or of each robot of its world
+        standard, shown = [], ok
+    return standard + [r.figures["positions"] for r in shown if "positions" in r.figures]
 
 
 def _sweep_plot(result: ExperimentResult, path: Path) -> None:
@@ -229,10 +240,11 @@ def results_page(results: list[ExperimentResult], docs: Path, short: bool) -> Pa
     sections = (
         (lambda q: q <= LAST_SECTION5_QUESTION, "## THEORY.md §5: the experiments"),
         (
-            lambda q: q > LAST_SECTION5_QUESTION,
+            lambda q: LAST_SECTION5_QUESTION < q <= LAST_SECTION4_QUESTION,
             "## THEORY.md §4: the practical specifications (disturbances, sampling, bandwidth,"
             " noise, friction, repeatability)",
         ),
+        (lambda q: q > LAST_SECTION4_QUESTION, "## In practice: several robots in one world"),
     )
     ordered = sorted(results, key=lambda r: (r.scenario.question, r.scenario.name))
     for belongs, heading in sections:

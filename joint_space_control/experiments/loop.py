@@ -3,6 +3,10 @@
 The simulator starts paused; once the controller and the simulator are connected, the
 reference is published and acknowledged by every subscriber, and only then is the simulator
 resumed. Same inputs therefore give the same run, however loaded the machine is.
+
+A loop holds one robot (its topics in the root namespace), or several robots in one world
+(one ``sim_bridge``, docs/robots.md "Several robots"), each with its own controller in its
+namespace; the world steps once every controller has answered.
 """
 
 from __future__ import annotations
@@ -16,8 +20,10 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.experiments.domains import lease_domain
-from joint_space_control.experiments.probe import LoopProbe
+from joint_space_control.experiments.probe import LoopProbe, in_namespace
 from joint_space_control.experiments.processes import ProcessGroup
+from joint_space_control.experiments.scenario import RobotSetup
+from joint_space_control.recording.selection import world_topics
 
 #: After the last state of a run, the nodes stop once the bag has not grown for this long
 #: [s] (longer than the recorder's flush_period while idle), or after RECORD_SETTLE_MAX.
@@ -26,22 +32,43 @@ RECORD_SETTLE_MAX = 20.0
 
 
 class ClosedLoop:
-    """sim_bridge (lockstep) + one controller (answering every state) + a probe, and a
-    recorder writing the bag ``record`` when one is given."""
+    """sim_bridge (lockstep) + one controller per robot (answering every state) + a probe,
+    and a recorder writing the bag ``record`` when one is given.
+
+    ``robot``: the one robot's name (with ``controller`` and ``controller_params``;
+    ``sim_params`` then holds its sim_bridge parameters and the world's), or the robots of a
+    world of several, each in its namespace with its controller, its parameters and its own
+    sim_bridge parameters (``plant``; ``sim_params``: the world's only; their references
+    are the caller's to send)."""
 
     def __init__(
         self,
         workdir: Path,
         domain_id: int | None,
-        robot: str,
+        robot: str | Sequence[RobotSetup],
         controller: str = "pd_gravity_controller",
         controller_params: Mapping[str, Any] | None = None,
         sim_params: Mapping[str, Any] | None = None,
         record: Path | None = None,
         recorder_params: Mapping[str, Any] | None = None,
     ) -> None:
-        self.robot = robot
-        self.controller = controller
+        if isinstance(robot, str):
+            self.robots = [
+                RobotSetup("", robot, {}, controller, dict(controller_params or {}), {})
+            ]
+            world = {"robot": robot, **(sim_params or {})}
+        else:
+            self.robots = list(robot)
+            names = [r.name for r in self.robots]
+            world = {
+                "robots": names,
+                **{r.name: {"robot": r.robot, **r.plant} for r in self.robots},
+                **(sim_params or {}),
+            }
+            # each robot's topics, in its namespace
+            recorder_params = {"topics": world_topics(names), **(recorder_params or {})}
+        self.robot = self.robots[0].robot  # the (first) robot's
+        self.controller = self.robots[0].controller
         self.bag = record
         self._lease = None
         self._closing = threading.Lock()
@@ -54,27 +81,41 @@ class ClosedLoop:
         try:
             if record is not None:  # first: it sees every node's parameters and config
                 self.group.start("recorder", {**(recorder_params or {}), "output": str(record)})
-            self.group.start(
-                "sim_bridge",
-                {"robot": robot, **(sim_params or {}), "mode": "lockstep", "start_paused": True},
+            self.group.start("sim_bridge", {**world, "mode": "lockstep", "start_paused": True})
+            for r in self.robots:
+                self.group.start(
+                    r.controller,
+                    {"robot": r.robot, **r.parameters, "trigger": "state"},
+                    namespace=r.name,
+                )
+            self.probe = LoopProbe(
+                domain_id,
+                name=f"jsc_probe_{domain_id}",
+                namespaces=[r.name for r in self.robots],
             )
-            self.group.start(
-                controller, {"robot": robot, **(controller_params or {}), "trigger": "state"}
-            )
-            self.probe = LoopProbe(domain_id, name=f"jsc_probe_{domain_id}")
-            # the controller itself subscribed (a recorder alone satisfies the topic counts)
-            self.probe.wait_for_subscriber(
-                controller, ["/reference", "/joint_states"], check=self.group.check_alive
-            )
+            for r in self.robots:
+                # the controller itself subscribed (a recorder alone satisfies the counts)
+                self.probe.wait_for_subscriber(
+                    r.controller,
+                    _absolute(r.name, "reference", "joint_states"),
+                    check=self.group.check_alive,
+                )
             self.probe.wait_for_graph(
                 check=self.group.check_alive, reference_subscribers=1 + (record is not None)
             )
             if record is not None:
-                self.probe.wait_for_subscriber(
-                    "recorder",
-                    ["/joint_states", "/effort_command", "/reference", f"/{controller}/state"],
-                    check=self.group.check_alive,
-                )
+                for r in self.robots:
+                    self.probe.wait_for_subscriber(
+                        "recorder",
+                        _absolute(
+                            r.name,
+                            "joint_states",
+                            "effort_command",
+                            "reference",
+                            f"{r.controller}/state",
+                        ),
+                        check=self.group.check_alive,
+                    )
         except BaseException:
             self.close()
             raise
@@ -87,20 +128,20 @@ class ClosedLoop:
         velocities: Sequence[Sequence[float]] | None = None,
         accelerations: Sequence[Sequence[float]] | None = None,
     ) -> None:
-        """Send the reference (acknowledged) and only then let the simulator run."""
+        """Send the (first) robot's reference (acknowledged) and only then let the simulator
+        run. With several robots: ``probe.send_reference(..., namespace=)`` to each, then
+        :meth:`resume`."""
         self.probe.send_reference(
             joints, positions, times, velocities=velocities, accelerations=accelerations
         )
-        response = self.probe.call_trigger("/sim_bridge/resume")
-        if not response.success:
-            raise RuntimeError(f"sim_bridge did not resume: {response.message}")
+        self.resume()
 
     def run_until(self, t_sim: float, timeout: float = 300.0) -> None:
         self.probe.run_until(t_sim, timeout, check=self.group.check_alive)
 
     def hold_at(self, t_sim: float) -> None:
         """With the simulator's ``pause_at`` = t_sim: wait until it has paused there and the
-        controller has answered that state (the answer is repeated after ``resume()``),
+        controllers have answered that state (the answer is repeated after ``resume()``),
         so that changes made now apply from the next step, in every run alike."""
         self.run_until(t_sim)
         self.probe.wait_for_answer(round(t_sim * 1e9), check=self.group.check_alive)
@@ -164,3 +205,8 @@ class ClosedLoop:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _absolute(namespace: str, *topics: str) -> list[str]:
+    """The absolute names of ``topics`` in ``namespace`` ("": the root)."""
+    return [f"/{in_namespace(namespace, topic)}" for topic in topics]

@@ -1,12 +1,14 @@
 """A client node that drives and observes a running loop: waits for the graph, sends
 references, calls the simulator's services, sets parameters through the standard parameter
-services (what ``ros2 param set`` uses) and collects joint states."""
+services (what ``ros2 param set`` uses) and collects joint states: of one robot, or of each
+robot of a world of several (its topics in its namespace)."""
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -54,22 +56,49 @@ class Recording:
         )
 
 
-class LoopProbe(RosClient):
-    """Owns its own rclpy context in the given domain; close() when done."""
+def in_namespace(namespace: str, topic: str) -> str:
+    """``topic`` of the robot in ``namespace`` ("": the relative name, the one robot's)."""
+    return f"{namespace}/{topic}" if namespace else topic
 
-    def __init__(self, domain_id: int, name: str = "jsc_probe") -> None:
+
+class LoopProbe(RosClient):
+    """Owns its own rclpy context in the given domain; close() when done.
+
+    ``namespaces``: the robots observed, each by its namespace (the default: the one robot,
+    whose topics are in the probe's own namespace). Every robot has its own
+    :class:`Recording` (``recordings``; ``recording`` is the first's) and reference."""
+
+    def __init__(
+        self, domain_id: int, name: str = "jsc_probe", namespaces: Sequence[str] = ("",)
+    ) -> None:
         super().__init__(domain_id, name)
-        self.recording = Recording()
+        self.namespaces = tuple(namespaces)
+        self.recordings = {ns: Recording() for ns in self.namespaces}
+        self.recording = self.recordings[self.namespaces[0]]
         self._rest_due = 0.0
         # The loop's own topics are taken by a dedicated wait-set loop: through the executor
         # (a wait-set rebuild per message) the probe falls behind a lockstep loop that runs
         # faster than real time. One message per topic and wait, as an executor takes them,
         # so that run_until() stops at the first state at or after its time.
         self._observed = ControlPath(self.node)
-        self._observed.subscription(JointState, "joint_states", self._on_state, RECORD_QOS)
-        self.answered_ns = -1  # newest stamp answered on effort_command
-        self._observed.subscription(JointState, "effort_command", self._on_command, RECORD_QOS)
-        self._ref_pub = self.node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
+        self.answered = dict.fromkeys(self.namespaces, -1)  # newest stamp on effort_command
+        self._ref_pubs = {}
+        for ns in self.namespaces:
+            self._observed.subscription(
+                JointState,
+                in_namespace(ns, "joint_states"),
+                partial(self._on_state, self.recordings[ns]),
+                RECORD_QOS,
+            )
+            self._observed.subscription(
+                JointState,
+                in_namespace(ns, "effort_command"),
+                partial(self._on_command, ns),
+                RECORD_QOS,
+            )
+            self._ref_pubs[ns] = self.node.create_publisher(
+                JointTrajectory, in_namespace(ns, "reference"), REFERENCE_QOS
+            )
         self._diagnostics: dict[str, dict[str, float | str]] | None = None
 
     def observe(self, msg_type: type, topic: str, callback: Callable[[Any], None]) -> None:
@@ -80,15 +109,15 @@ class LoopProbe(RosClient):
             msg_type, topic, lambda msg, info=None: callback(msg), RECORD_QOS
         )
 
-    def _on_state(self, msg: JointState, info: object = None) -> None:
-        rec = self.recording
+    @staticmethod
+    def _on_state(rec: Recording, msg: JointState, info: object = None) -> None:
         rec.stamps.append(stamp_to_ns(msg.header.stamp))
         rec.positions.append(list(msg.position))
         rec.velocities.append(list(msg.velocity))
         rec.efforts.append(list(msg.effort))
 
-    def _on_command(self, msg: JointState, info: object = None) -> None:
-        self.answered_ns = max(self.answered_ns, stamp_to_ns(msg.header.stamp))
+    def _on_command(self, namespace: str, msg: JointState, info: object = None) -> None:
+        self.answered[namespace] = max(self.answered[namespace], stamp_to_ns(msg.header.stamp))
 
     # -- spinning ----------------------------------------------------------------------
     def spin_once(self) -> None:
@@ -101,7 +130,11 @@ class LoopProbe(RosClient):
             self._rest_due = now + REST_PERIOD
 
     def latest_time(self) -> float:
-        return self.recording.stamps[-1] * 1e-9 if self.recording.stamps else -1.0
+        """The newest joint state's time [s] (-1 before the first); with several robots,
+        the robot furthest behind's."""
+        return min(
+            rec.stamps[-1] * 1e-9 if rec.stamps else -1.0 for rec in self.recordings.values()
+        )
 
     def run_until(
         self, t_sim: float, timeout: float, check: Callable[[], None] | None = None
@@ -117,9 +150,13 @@ class LoopProbe(RosClient):
     def wait_for_answer(
         self, stamp_ns: int, timeout: float = 30.0, check: Callable[[], None] | None = None
     ) -> None:
-        """Spin until a command answering the joint state stamped ``stamp_ns`` was seen."""
+        """Spin until a command answering the joint state stamped ``stamp_ns`` was seen
+        (of every robot)."""
         self.spin_until(
-            lambda: self.answered_ns >= stamp_ns, timeout, f"the answer to {stamp_ns} ns", check
+            lambda: min(self.answered.values()) >= stamp_ns,
+            timeout,
+            f"the answer to {stamp_ns} ns",
+            check,
         )
 
     def wait_for_diagnostics(
@@ -158,16 +195,21 @@ class LoopProbe(RosClient):
         """Wait until a controller and the simulator are connected through the topics, and
         ``reference_subscribers`` subscriptions (the controller's, a recorder's) are matched
         with the probe's reference publisher: a reference acknowledged by fewer would miss
-        one of them."""
+        one of them. With several robots, each robot's."""
         n = self.node
+
+        def connected(ns: str) -> bool:
+            states, commands = in_namespace(ns, "joint_states"), in_namespace(ns, "effort_command")
+            return (
+                n.count_publishers(states) >= 1
+                and n.count_subscribers(states) >= 2
+                and n.count_publishers(commands) >= 1
+                and n.count_subscribers(commands) >= 1
+                and self._ref_pubs[ns].get_subscription_count() >= reference_subscribers
+            )
+
         self.spin_until(
-            lambda: (
-                n.count_publishers("joint_states") >= 1
-                and n.count_subscribers("joint_states") >= 2
-                and n.count_publishers("effort_command") >= 1
-                and n.count_subscribers("effort_command") >= 1
-                and self._ref_pub.get_subscription_count() >= reference_subscribers
-            ),
+            lambda: all(connected(ns) for ns in self.namespaces),
             timeout,
             "the simulator and the controller to connect",
             check,
@@ -200,8 +242,10 @@ class LoopProbe(RosClient):
         start_ns: int = 0,
         velocities: Sequence[Sequence[float]] | None = None,
         accelerations: Sequence[Sequence[float]] | None = None,
+        namespace: str | None = None,
     ) -> None:
-        """Publish a trajectory and wait until every subscriber has acknowledged it."""
+        """Publish a trajectory to the robot in ``namespace`` (default: the first) and wait
+        until every subscriber has acknowledged it."""
         msg = JointTrajectory(joint_names=list(joints))
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(start_ns, 1_000_000_000)
         for k, (t, pos) in enumerate(zip(times, positions, strict=True)):
@@ -214,8 +258,9 @@ class LoopProbe(RosClient):
             if accelerations is not None:
                 point.accelerations = [float(a) for a in accelerations[k]]
             msg.points.append(point)
-        self._ref_pub.publish(msg)
-        if not self._ref_pub.wait_for_all_acked(rclpy.duration.Duration(seconds=20.0)):
+        publisher = self._ref_pubs[self.namespaces[0] if namespace is None else namespace]
+        publisher.publish(msg)
+        if not publisher.wait_for_all_acked(rclpy.duration.Duration(seconds=20.0)):
             raise TimeoutError("reference not acknowledged by every subscriber")
 
     def close(self) -> None:

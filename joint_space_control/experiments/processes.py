@@ -1,7 +1,8 @@
 """Start nodes as separate processes, the way a launch file would, and always stop them.
 
 Each node runs as ``python -m <module> --ros-args -r __node:=<name> --params-file <yaml>``
-in an isolated ROS domain (``ROS_DOMAIN_ID``) with localhost-only discovery.
+(and ``-r __ns:=/<namespace>`` for a robot's node in a world of several) in an isolated ROS
+domain (``ROS_DOMAIN_ID``) with localhost-only discovery.
 """
 
 from __future__ import annotations
@@ -49,12 +50,17 @@ class NodeProcess:
         env: Mapping[str, str],
         extra_args: list[str] | None = None,
         prefix: Sequence[str] = (),
+        namespace: str = "",
     ) -> None:
-        """``prefix``: a command that runs the node (``setpriv …``, ``taskset …``)."""
+        """``prefix``: a command that runs the node (``setpriv …``, ``taskset …``);
+        ``namespace``: the node's (its files then go in ``workdir/<namespace>/``)."""
         if executable not in EXECUTABLES:
             raise ValueError(f"unknown executable '{executable}'")
+        if namespace:
+            workdir = workdir / namespace
+            extra_args = ["-r", f"__ns:=/{namespace}", *(extra_args or [])]
         workdir.mkdir(parents=True, exist_ok=True)
-        self.name = name
+        self.name = f"{namespace}/{name}" if namespace else name
         self.params_file = workdir / f"{name}.params.yaml"
         self.params_file.write_text(yaml.safe_dump({"/**": {"ros__parameters": dict(params)}}))
         self.log_path = workdir / f"{name}.log"
@@ -116,10 +122,20 @@ class ProcessGroup:
         name: str | None = None,
         extra_args: list[str] | None = None,
         prefix: Sequence[str] = (),
+        namespace: str = "",
     ) -> NodeProcess:
-        name = name or executable
-        node = NodeProcess(executable, name, params, self.workdir, self.env, extra_args, prefix)
-        self.nodes[name] = node
+        """Start a node; it is ``nodes[name]``, or ``nodes["<namespace>/<name>"]``."""
+        node = NodeProcess(
+            executable,
+            name or executable,
+            params,
+            self.workdir,
+            self.env,
+            extra_args,
+            prefix,
+            namespace,
+        )
+        self.nodes[node.name] = node
         return node
 
     def check_alive(self) -> None:

@@ -30,6 +30,21 @@ variants:                                  # optional: one run per value (a swee
 checks: [...]                              # theory checks, see experiments/checks.py
 ```
 
+Several robots in one world (one ``sim_bridge``, docs/robots.md "Several robots") replace
+``robot``, ``controller``, ``parameters`` and ``reference`` with ``robots``, a mapping from
+each robot's name (the namespace of its topics and its controller) to its own settings;
+``plant`` is then the world's sim_bridge parameters (``physics_rate``, …), and every check
+judges each robot as it would a run of its own:
+
+```yaml
+robots:
+  iiwa: {robot: iiwa, plant: {initial_positions: [...]}, controller: pd_gravity_controller,
+         parameters: {...}, reference: {shape: step, target: [...]}}
+  arm: {robot: planar_2dof, plant: {base_position: [2.2, 0, 0]}, ...}
+```
+
+(no ``changes``, ``variants`` or ``figures`` with ``robots`` yet.)
+
 Parameter names are the nodes' own (docs/parameters.md); a scenario is checked here for
 structure and the values by the nodes when they start, as any parameter file would be.
 """
@@ -37,6 +52,7 @@ structure and the values by the nodes when they start, as any parameter file wou
 from __future__ import annotations
 
 import copy
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -67,7 +83,21 @@ _TOP_KEYS = {
     "checks",
     "figures",
     "notes",
+    "robots",
 }
+#: With ``robots``: what each robot of the world sets (``robot``, ``controller`` and
+#: ``reference`` required), and the top-level keys that only one robot can have.
+_ROBOT_KEYS = {"robot", "plant", "controller", "parameters", "reference"}
+_ONE_ROBOT_KEYS = (
+    "robot",
+    "controller",
+    "parameters",
+    "reference",
+    "changes",
+    "variants",
+    "figures",
+)
+_ROBOT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # sim_bridge's rule: a namespace
 
 
 @dataclass(frozen=True)
@@ -92,6 +122,20 @@ class Variants:
 
 
 @dataclass(frozen=True)
+class RobotSetup:
+    """One robot of a run: its namespace ``name`` ("": the root, the one-robot scenario),
+    description, plant (sim_bridge parameters), controller executable and parameters, and
+    reference."""
+
+    name: str
+    robot: str
+    plant: dict[str, Any]
+    controller: str
+    parameters: dict[str, Any]
+    reference: dict[str, Any]
+
+
+@dataclass(frozen=True)
 class Scenario:
     name: str
     path: Path
@@ -111,6 +155,38 @@ class Scenario:
     notes: str = ""
     figures: tuple[str, ...] = ()
     """Extra figures of the experiment (experiments/figures.py), beside the standard ones."""
+    robots: tuple[RobotSetup, ...] = ()
+    """Several robots in one world (each in its namespace); then ``robot`` and
+    ``controller`` name them all joined by " + " (for listings), ``plant`` holds the world's
+    parameters and ``parameters`` and ``reference`` are empty."""
+
+    def setups(self) -> tuple[RobotSetup, ...]:
+        """The robots of a run: the world's, or the one robot in the root namespace."""
+        if self.robots:
+            return self.robots
+        return (
+            RobotSetup(
+                "", self.robot, self.plant, self.controller, self.parameters, self.reference
+            ),
+        )
+
+    def of_robot(self, setup: RobotSetup) -> Scenario:
+        """The one-robot scenario of ``setup`` in this world (named ``<name>/<robot name>``;
+        its plant: the world's parameters and the robot's): what a check sees of it."""
+        if not setup.name:
+            return self
+        return Scenario(
+            **{
+                **self.__dict__,
+                "name": f"{self.name}/{setup.name}",
+                "robot": setup.robot,
+                "plant": {**self.plant, **setup.plant},
+                "controller": setup.controller,
+                "parameters": setup.parameters,
+                "reference": setup.reference,
+                "robots": (),
+            }
+        )
 
     def run_duration(self, short: bool) -> float:
         return self.short_duration if short else self.duration
@@ -214,12 +290,23 @@ def parse(data: Any, name: str, path: Path) -> Scenario:
     unknown = set(data) - _TOP_KEYS
     if unknown:
         raise ValueError(f"unknown keys {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
-    for key in ("title", "question", "robot", "duration", "controller", "reference"):
+    robots = _robots(data)
+    required = ("title", "question", "duration")
+    if not robots:
+        required += ("robot", "controller", "reference")
+    for key in required:
         if key not in data:
             raise ValueError(f"missing '{key}'")
     duration = _time(data["duration"], "duration")
     short = _time(data.get("short_duration", min(duration, 1.0)), "short_duration")
-    if data["controller"] not in CONTROLLERS:
+    if robots:
+        data = {
+            **data,
+            "robot": " + ".join(r.robot for r in robots),
+            "controller": " + ".join(r.controller for r in robots),
+            "reference": {},
+        }
+    elif data["controller"] not in CONTROLLERS:
         raise ValueError(f"'controller' must be one of {CONTROLLERS}, got {data['controller']!r}")
     mode = data.get("mode", "lockstep")
     if mode != "lockstep":
@@ -293,10 +380,62 @@ def parse(data: Any, name: str, path: Path) -> Scenario:
         checks=[_mapping(c, "checks[]") for c in data.get("checks") or []],
         notes=str(data.get("notes", "")),
         figures=_figures(data.get("figures")),
+        robots=robots,
     )
     for _, run in scenario.runs():
-        build_reference(run.reference, None, run.duration)  # fails early on a bad reference
+        for setup in run.setups():  # fails early on a bad reference
+            try:
+                build_reference(setup.reference, None, run.duration)
+            except ValueError as err:
+                if not setup.name:
+                    raise
+                raise ValueError(f"robots.{setup.name}: {err}") from None
     return scenario
+
+
+def _robots(data: dict[str, Any]) -> tuple[RobotSetup, ...]:
+    """The ``robots`` of a world, checked (empty: a one-robot scenario)."""
+    if data.get("robots") is None:
+        return ()
+    raw = _mapping(data["robots"], "robots")
+    if not raw:
+        raise ValueError("'robots' must name at least one robot")
+    if both := [k for k in _ONE_ROBOT_KEYS if k in data]:
+        raise ValueError(
+            f"with 'robots', {both} belong to each robot or are not supported: give robot, "
+            "plant, controller, parameters and reference under each robot's name"
+        )
+    setups = []
+    for name, spec in raw.items():
+        what = f"robots.{name}"
+        if not isinstance(name, str) or not _ROBOT_NAME.fullmatch(name):
+            raise ValueError(
+                f"'robots': {name!r} is not a name (a letter, then letters, digits or _): "
+                "it is the namespace of the robot's topics"
+            )
+        spec = _mapping(spec, what)
+        if extra := set(spec) - _ROBOT_KEYS:
+            raise ValueError(
+                f"{what}: unknown keys {sorted(extra)}; allowed: {sorted(_ROBOT_KEYS)}"
+            )
+        for key in ("robot", "controller", "reference"):
+            if key not in spec:
+                raise ValueError(f"{what}: missing '{key}'")
+        if spec["controller"] not in CONTROLLERS:
+            raise ValueError(
+                f"{what}: 'controller' must be one of {CONTROLLERS}, got {spec['controller']!r}"
+            )
+        setups.append(
+            RobotSetup(
+                name,
+                str(spec["robot"]),
+                _mapping(spec.get("plant"), f"{what}.plant"),
+                spec["controller"],
+                _mapping(spec.get("parameters"), f"{what}.parameters"),
+                _mapping(spec["reference"], f"{what}.reference"),
+            )
+        )
+    return tuple(setups)
 
 
 def _figures(value: Any) -> tuple[str, ...]:

@@ -6,20 +6,30 @@ import fnmatch
 import re
 from collections.abc import Sequence
 
-#: Recorded when ``topics`` is empty: the loop's signals, every controller's state and
-#: configuration, simulation time, parameter changes and diagnostics, and the plant's true
-#: state when its measurement is imperfect (published only then).
-DEFAULT_TOPICS = (
+#: A robot's topics, relative to its namespace: the loop's signals, every controller's state
+#: and configuration, and the plant's true state when its measurement is imperfect
+#: (published only then).
+ROBOT_TOPICS = (
     "joint_states",
     "sim_bridge/true_joint_states",
     "effort_command",
     "reference",
     "*/state",
     "*/config",
-    "/clock",
-    "/parameter_events",
-    "/diagnostics",
 )
+#: The world's: simulation time, parameter changes and diagnostics.
+WORLD_TOPICS = ("/clock", "/parameter_events", "/diagnostics")
+#: Recorded when ``topics`` is empty: the one robot's (in the recorder's namespace) and the
+#: world's.
+DEFAULT_TOPICS = ROBOT_TOPICS + WORLD_TOPICS
+
+
+def world_topics(namespaces: Sequence[str]) -> list[str]:
+    """The ``topics`` that record a world of several robots: each robot's in its namespace
+    (relative, as the robots' own are to the recorder in the root namespace) and the
+    world's."""
+    return [f"{ns}/{topic}" for ns in namespaces for topic in ROBOT_TOPICS] + list(WORLD_TOPICS)
+
 
 _NAME = re.compile(r"^[~/]?[A-Za-z0-9_*?/\[\]{}]+$")
 

@@ -1,5 +1,5 @@
-"""`jsc experiment` end to end: a scenario checked against the theory, and every installed
-scenario in its short (CI) form."""
+"""`jsc experiment` end to end: a scenario checked against the theory, two robots in one world
+judged each on its own, and every installed scenario in its short (CI) form."""
 
 from __future__ import annotations
 
@@ -54,6 +54,53 @@ def test_inverse_dynamics_scenario_end_to_end_agrees_with_the_theory(tmp_path):
     summary = (out / "summary.md").read_text()
     assert "agrees" in summary and "positions.png" in summary
     assert (out / "bag" / "metadata.yaml").is_file()
+
+
+def test_two_robots_in_one_world_are_each_analysed_and_checked(tmp_path):
+    """One world, one bag, one report: each robot's controller analysed as a run of its own,
+    the checks per robot (the iiwa's PD + g at its set-point, the arm's inverse dynamics the
+    second order of its gains), both on the results page."""
+    docs = tmp_path / "docs"
+    result = jsc("two_robots", "--out", str(tmp_path), "--report", str(docs), timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    out = tmp_path / "two_robots"
+    verdict = json.loads((out / "result.json").read_text())
+    assert verdict["passed"] is True and verdict["errors"] == []
+    assert [(r["label"], r["robot"], r["controller"]) for r in verdict["runs"]] == [
+        ("iiwa", "iiwa", "pd_gravity_controller"),
+        ("arm", "planar_2dof", "inverse_dynamics_controller"),
+    ]
+    metrics = json.loads((out / "report" / "metrics.json").read_text())
+    nodes = {"iiwa": "/iiwa/pd_gravity_controller", "arm": "/arm/inverse_dynamics_controller"}
+    assert set(metrics["controllers"]) == set(nodes.values())
+    final = {c["text"].split(":")[0]: c for c in verdict["checks"] if c["check"] == "final_error"}
+    assert set(final) == set(nodes)
+    for robot, node in nodes.items():
+        controller = metrics["controllers"][node]
+        assert len(controller["joints"]) == {"iiwa": 7, "arm": 2}[robot]
+        assert controller["time"]["end"] == 4.0
+        # the check judged this robot's own numbers, and they agree
+        largest = max(abs(e) for e in controller["final_error"].values())
+        assert final[robot]["numbers"]["max_abs_final_error"] == largest
+        assert final[robot]["passed"] is True and largest < 1e-3
+        for topic in ("joint_states", "effort_command", "reference"):
+            assert metrics["message_counts"][f"/{robot}/{topic}"] >= 1
+        assert metrics["message_counts"][f"/{robot}/joint_states"] == 4001  # 0 … 4 s at 1 kHz
+    second = [c for c in verdict["checks"] if c["check"] == "second_order"]
+    assert [c["numbers"]["joint"] for c in second] == ["joint1", "joint2"]
+    assert all(c["passed"] and c["text"].startswith("arm ") for c in second)
+    events = json.loads((out / "events.json").read_text())
+    assert set(events) == set(nodes) and len(events["iiwa"][-1]["q"]) == 7
+    page = (docs / "results.md").read_text()
+    assert "## In practice: several robots in one world" in page and "### 15. " in page
+    links = [
+        line[line.index("](") + 2 : -1] for line in page.splitlines() if line.startswith("![")
+    ]
+    assert [Path(link).name for link in links] == [
+        "two_robots_iiwa_pd_gravity_controller_positions.png",
+        "two_robots_arm_inverse_dynamics_controller_positions.png",
+    ]
+    assert all((docs / link).is_file() for link in links)
 
 
 def _chunks(parts: int = 3) -> list[list[str]]:

@@ -27,7 +27,7 @@ from joint_space_control.recording.bag_writer import (
     jazzy_typestore,
 )
 from joint_space_control.recording.recover import recover
-from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection
+from joint_space_control.recording.selection import DEFAULT_TOPICS, TopicSelection, world_topics
 
 TYPESTORE = jazzy_typestore()
 JS = "sensor_msgs/msg/JointState"
@@ -319,6 +319,23 @@ def test_empty_selection_is_the_default_set():
     ]:
         assert sel.matches(topic), topic
     assert not sel.matches("/rosout")
+
+
+def test_world_topics_record_each_robot_in_its_namespace():
+    sel = TopicSelection(world_topics(["iiwa", "arm"]), "/")
+    for ns in ("iiwa", "arm"):
+        for topic in [
+            "joint_states",
+            "effort_command",
+            "reference",
+            "sim_bridge/true_joint_states",
+        ]:
+            assert sel.matches(f"/{ns}/{topic}"), (ns, topic)
+    assert sel.matches("/iiwa/pd_gravity_controller/state")
+    assert sel.matches("/arm/inverse_dynamics_controller/config")
+    for topic in ["/clock", "/parameter_events", "/diagnostics"]:
+        assert sel.matches(topic)
+    assert not sel.matches("/joint_states") and not sel.matches("/other/joint_states")
 
 
 @pytest.mark.parametrize("entry", ["", "~/state", "bad name", "/a//b"])

@@ -36,9 +36,9 @@ def test_every_installed_scenario_loads_and_answers_a_question():
             assert run.variants is None and label
     # THEORY.md §5: experiments 1–8; §4, the practical specifications: 9 disturbance,
     # 10 sampling period, 11 bandwidth, 12 measurement noise, 13 Coulomb friction, 14
-    # accuracy and repeatability
-    assert questions == set(range(1, 15))
-    robots = {load(n).robot for n in scenarios}
+    # accuracy and repeatability; in practice: 15 two robots in one world
+    assert questions == set(range(1, 16))
+    robots = {setup.robot for n in scenarios for setup in load(n).setups()}
     assert robots == {"planar_2dof", "iiwa"}
 
 
@@ -99,6 +99,92 @@ def test_a_variant_may_switch_the_controller_executable():
 def test_invalid_scenarios_are_refused_with_a_reason(change, match):
     with pytest.raises(ValueError, match=match):
         parse({**MINIMAL, **change}, "bad", Path("bad.yaml"))
+
+
+WORLD = {
+    "title": "t",
+    "question": 15,
+    "duration": 2.0,
+    "plant": {"physics_rate": 1000.0},
+    "robots": {
+        "iiwa": {
+            "robot": "iiwa",
+            "controller": "pd_gravity_controller",
+            "parameters": {"kp": 100.0},
+            "reference": {"shape": "step", "target": [0.1] * 7},
+        },
+        "arm": {
+            "robot": "planar_2dof",
+            "plant": {"base_position": [2.2, 0.0, 0.0], "initial_positions": [0.1, 0.2]},
+            "controller": "inverse_dynamics_controller",
+            "reference": {"shape": "quintic", "target": [0.5, -0.3], "duration": 1.0},
+        },
+    },
+    "checks": [{"check": "final_error"}],
+}
+
+
+def test_a_world_of_robots_is_one_run_of_one_setup_per_robot():
+    s = parse(WORLD, "world", Path("world.yaml"))
+    assert [r.name for r in s.setups()] == ["iiwa", "arm"]
+    arm = s.setups()[1]
+    assert (arm.robot, arm.controller) == ("planar_2dof", "inverse_dynamics_controller")
+    assert arm.plant == {"base_position": [2.2, 0.0, 0.0], "initial_positions": [0.1, 0.2]}
+    assert s.setups()[0].parameters == {"kp": 100.0} and arm.parameters == {}
+    assert (s.robot, s.controller) == (
+        "iiwa + planar_2dof",
+        "pd_gravity_controller + inverse_dynamics_controller",
+    )
+    assert [label for label, _ in s.runs()] == ["run"] == [lbl for lbl, _ in s.runs(True)]
+    # what a check sees of a robot: a one-robot scenario, the world's plant under its own
+    view = s.of_robot(arm)
+    assert view.name == "world/arm" and view.robots == () and view.robot == "planar_2dof"
+    assert view.plant == {"physics_rate": 1000.0, **arm.plant}
+    assert view.reference == arm.reference and view.setups()[0].name == ""
+    # one robot: one setup in the root namespace, which is the scenario itself
+    one = parse(MINIMAL, "one", Path("one.yaml"))
+    (setup,) = one.setups()
+    assert (setup.name, setup.robot, setup.reference) == ("", "planar_2dof", MINIMAL["reference"])
+    assert one.of_robot(setup) is one
+
+
+def test_the_two_robots_scenario_puts_the_arm_beside_the_iiwa():
+    s = load("two_robots")
+    iiwa, arm = s.setups()
+    assert (iiwa.name, iiwa.robot, arm.name, arm.robot) == ("iiwa", "iiwa", "arm", "planar_2dof")
+    assert iiwa.controller != arm.controller
+    assert arm.plant["base_position"][0] >= 2.0  # out of the iiwa's reach
+    assert {c["check"] for c in s.checks} == {"final_error", "second_order"}
+
+
+def _world(**change):
+    robots = {name: {**spec, **change.pop(name, {})} for name, spec in WORLD["robots"].items()}
+    return {**WORLD, "robots": robots, **change}
+
+
+@pytest.mark.parametrize(
+    ("data", "match"),
+    [
+        (_world(robot="iiwa"), r"with 'robots', \['robot'\] belong to each robot"),
+        (_world(changes=[{"at": 1.0}]), "with 'robots'"),
+        (_world(variants={"key": "plant.x", "values": [1]}), "with 'robots'"),
+        (_world(figures=["overlay"]), "with 'robots'"),
+        ({**WORLD, "robots": {}}, "at least one robot"),
+        ({**WORLD, "robots": {"2nd": WORLD["robots"]["arm"]}}, "is not a name"),
+        ({**WORLD, "robots": {"a-b": WORLD["robots"]["arm"]}}, "is not a name"),
+        (_world(arm={"colour": "red"}), r"robots.arm: unknown keys \['colour'\]"),
+        (_world(arm={"controller": "lqr"}), "robots.arm: 'controller' must be one of"),
+        (_world(arm={"plant": [1, 2]}), "'robots.arm.plant' must be a mapping"),
+        (
+            {**WORLD, "robots": {"arm": {"robot": "planar_2dof", "reference": {}}}},
+            "robots.arm: missing 'controller'",
+        ),
+        (_world(arm={"reference": {"shape": "step"}}), "robots.arm: reference 'step' needs"),
+    ],
+)
+def test_invalid_worlds_are_refused_with_a_reason(data, match):
+    with pytest.raises(ValueError, match=match):
+        parse(data, "bad", Path("bad.yaml"))
 
 
 def test_a_scenario_file_outside_the_package_loads(tmp_path):
