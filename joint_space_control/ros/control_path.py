@@ -321,14 +321,25 @@ class _Prepared:
         self._handles.close()
 
 
-def spin_node(node: Node, control_path: ControlPath | None) -> None:
+def spin_node(
+    node: Node,
+    control_path: ControlPath | None,
+    executor: SingleThreadedExecutor | None = None,
+    stopping: threading.Event | None = None,
+) -> None:
     """Spin ``node``: its control path (if any, even one still empty) in this thread and the
-    rest in a standard executor in a second thread; only the executor without one. Returns
-    when the context shuts down or the control path is stopped."""
-    executor = SingleThreadedExecutor()
+    rest in a standard executor (``executor``, made before the node so that a signal during
+    start-up finds it whole; else one made here) in a second thread; only the executor
+    without one. Returns when the context shuts down, the control path is stopped or
+    ``stopping`` is set (a signal, :func:`~joint_space_control.ros.node_main.run_node`)."""
+    executor = executor if executor is not None else SingleThreadedExecutor()
     executor.add_node(node)
     if control_path is None:
-        executor.spin()
+        if stopping is None:
+            executor.spin()
+            return
+        while not stopping.is_set():
+            executor.spin_once(timeout_sec=0.2)
         return
     # A thread that wants the GIL asks its holder to let go after this long (default 5 ms):
     # the control path must not wait milliseconds behind the executor thread's work. 0.1 ms
@@ -341,13 +352,15 @@ def spin_node(node: Node, control_path: ControlPath | None) -> None:
     gc.collect()
     gc.freeze()
     failure: list[BaseException] = []
+    done = threading.Event()
 
     def spin_rest() -> None:
         name_this_thread("jsc-executor")
         if control_path.on_executor is not None:
             control_path.on_executor()
         try:
-            executor.spin()
+            while not done.is_set():
+                executor.spin_once(timeout_sec=0.2)
         except ExternalShutdownException:
             pass
         except BaseException as err:  # pragma: no cover - reported by the main thread
@@ -359,7 +372,12 @@ def spin_node(node: Node, control_path: ControlPath | None) -> None:
     try:
         control_path.spin()
     finally:
-        executor.shutdown(timeout_sec=1.0)
+        # The executor thread leaves its wait before the executor's guard conditions are
+        # destroyed: shut down under it, a wait on destroyed handles crashes (SIGSEGV); at
+        # FIFO priority this thread would win that race every time.
+        done.set()
+        executor.wake()
         thread.join(timeout=2.0)
+        executor.shutdown(timeout_sec=1.0)
     if failure:
         raise failure[0]
