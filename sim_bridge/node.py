@@ -92,7 +92,7 @@ from sim_bridge.parameters import (
     robot_values,
 )
 from sim_bridge.plant import World
-from sim_bridge.robot import COUNTERS, SimRobot  # noqa: F401  (COUNTERS: re-exported)
+from sim_bridge.robot import COUNTERS, SimRobot, node_names  # noqa: F401  (COUNTERS: re-exported)
 from sim_bridge.view import frame_view
 
 #: How often [s] the graph is checked for an owner that left (and for another /clock).
@@ -261,13 +261,7 @@ class SimBridge(Node):
         own name is taken for a previous instance of it that was killed (its participant
         stays in the graph for a while after a SIGKILL): a restarted simulator starts."""
         me = self.get_fully_qualified_name()
-        return sorted(
-            {
-                f"{i.node_namespace.rstrip('/')}/{i.node_name}"
-                for i in self.get_publishers_info_by_topic("/clock")
-            }
-            - {me}
-        )
+        return sorted(node_names(self.get_publishers_info_by_topic("/clock")) - {me})
 
     def _refuse_second_clock(self, created: float) -> None:
         """Another node publishing /clock in this domain (a second simulator): refuse to
@@ -392,9 +386,7 @@ class SimBridge(Node):
             listeners = self.get_subscriptions_info_by_topic(robot.topics["joint_states"])
             if not commanders and not listeners and len(self.robots) == 1:
                 return  # nobody around: nothing to say
-            names = tuple(
-                sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in commanders})
-            )
+            names = tuple(sorted(node_names(commanders)))
             said.append(f"{robot.name}:{','.join(names)}")
             who = f"{robot.name}: " if robot.name else ""
             if commanders:
@@ -406,9 +398,7 @@ class SimBridge(Node):
                     "time than the state's (header.stamp must be the state's stamp)"
                 )
             elif listeners:
-                subscribers = sorted(
-                    {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in listeners}
-                )
+                subscribers = sorted(node_names(listeners))
                 lines.append(
                     f"{who}{', '.join(subscribers)} subscribe(s) {robot.names['joint_states']} "
                     f"but nobody publishes {robot.names['effort_command']} (a controller "

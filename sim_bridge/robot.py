@@ -45,6 +45,11 @@ COUNTERS = (
 )
 
 
+def node_names(endpoints: Any) -> set[str]:
+    """The fully qualified names of the nodes behind graph endpoints (topic info)."""
+    return {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in endpoints}
+
+
 def quaternion(rpy: np.ndarray) -> tuple[float, float, float, float]:
     """(x, y, z, w) of roll, pitch, yaw about the fixed x, y, z axes (R = Rz Ry Rx)."""
     (cr, sr), (cp, sp), (cy, sy) = ((math.cos(a / 2), math.sin(a / 2)) for a in rpy)
@@ -292,7 +297,7 @@ class SimRobot:
         left (:meth:`CommandOwnership.left`, with the world's lock held)."""
         node = self.node
         publishers = node.get_publishers_info_by_topic(self.topics["effort_command"])
-        present = {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in publishers}
+        present = node_names(publishers)
         if publishers:
             present.add("")  # an unnamed commander may be any of them
         if node.get_publishers_info_by_topic(self.topics["commands"]):
