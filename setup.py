@@ -45,6 +45,11 @@ PYPI_REQUIRES = [
     "yourdfpy>=0.0.56,<0.1",
     "lxml>=4.9,<7",
     "xacro>=2,<3",
+    # Sweeps and tuning trials as tasks on a cluster (experiments/distributed.py): a
+    # LocalCluster by default, or any dask.distributed scheduler (SLURM/PBS: dask-jobqueue).
+    "dask[distributed]>=2024.8",
+    # `jsc tune`: TPE studies with constraints, resumable from an RDB (SQLite) file.
+    "optuna>=4,<6",
 ]
 
 # Test, lint and build-check tools (`make test`, `make colcon-check`, .ci/run).
