@@ -76,7 +76,10 @@ class ClosedLoop:
             self._lease = lease_domain()
             domain_id = self._lease.domain_id
         self.domain_id = domain_id
-        self.group = ProcessGroup(workdir, domain_id)
+        # the nodes hold the lease too: a node that outlives this process (killed) keeps
+        # its domain from the next run until it has stopped (processes.py)
+        lease_fd = self._lease.fileno() if self._lease is not None else None
+        self.group = ProcessGroup(workdir, domain_id, () if lease_fd is None else (lease_fd,))
         self.probe: LoopProbe | None = None
         try:
             if record is not None:  # first: it sees every node's parameters and config
