@@ -257,8 +257,8 @@ class _Dask:
                 self.client = Client(address, timeout=CONNECT_TIMEOUT)
             except Exception as err:  # noqa: BLE001 - any failure to connect is the address's
                 raise ValueError(
-                    f"cannot connect to the Dask scheduler {address!r}: "
-                    + (" ".join(str(err).split()) or type(err).__name__)
+                    f"cannot connect to the Dask scheduler {address!r} (is `dask scheduler` "
+                    "running there?): " + (" ".join(str(err).split()) or type(err).__name__)
                 ) from None
         self.event = Event(f"jsc-cancel-{uuid.uuid4().hex}", client=self.client)
 

@@ -282,8 +282,9 @@ def test_local_cluster_cancel_stops_running_tasks_on_the_workers(tmp_path, marke
 
 
 def test_an_unreachable_scheduler_is_a_one_line_error(tmp_path):
-    with pytest.raises(ValueError, match="cannot connect to the Dask scheduler"):
-        RunPool(2, "tcp://127.0.0.1:9")
+    with pytest.raises(ValueError, match="cannot connect to the Dask scheduler 'nonsense:x'"):
+        RunPool(2, "nonsense:x")
+    # nothing listens there: jsc gives up after CONNECT_TIMEOUT with one line
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     result = subprocess.run(
         [sys.executable, "-m", "joint_space_control.cli.main", "experiment"]
@@ -474,3 +475,28 @@ def test_ctrl_c_of_jsc_experiment_on_a_local_cluster_leaves_nothing(tmp_path, ma
     assert "interrupted" in output and "Traceback" not in output, output[-3000:]
     assert took < 30, f"jsc took {took:.1f} s to stop"
     assert left == [], f"processes left: {left}"
+
+
+@pytest.mark.timeout(600)
+def test_bench_sweep_section_times_one_sweep_on_one_and_two_workers(tmp_path, marker):
+    """``jsc bench`` section ``sweep``, tiny: both cluster sizes measured, every phase of a
+    run timed, the rows printed (speeds are not judged: a shared machine)."""
+    from joint_space_control.bench.sweep import PHASES, format_sweep, throughput
+
+    lines: list[str] = []
+    sweep = throughput(tmp_path, runs=2, duration=0.2, workers=(1, 2), log=lines.append)
+    assert [row["workers"] for row in sweep["rows"]] == [1, 2]
+    for row in sweep["rows"]:
+        assert row["failed"] == 0 and row["runs"] == 2
+        assert row["runs_per_minute"] == pytest.approx(120.0 / row["seconds"])
+        assert all(row["phases_s"][p] > 0 for p in PHASES), row["phases_s"]
+        # a worker's time per run holds the run's phases and the task's own cost
+        assert row["other_s"] >= 0, row
+        assert row["cpu_seconds"] > 0 and row["cpu_cores_used"] > 0
+    assert sweep["speedup"] == pytest.approx(
+        sweep["rows"][1]["runs_per_minute"] / sweep["rows"][0]["runs_per_minute"]
+    )
+    table = "\n".join(format_sweep(sweep))
+    assert "runs/min" in table and "2 workers / 1:" in table
+    assert not [line for line in lines if "retrying" in line]
+    assert marked(marker) == []
