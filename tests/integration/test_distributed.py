@@ -420,7 +420,7 @@ def test_a_worker_killed_mid_sweep_is_retried_and_leaves_no_node(tmp_path, marke
         killer.join(timeout=30)
         left_after_sweep = nodes_under(tmp_path)
     assert killed, "no run was found running to kill its worker"
-    assert killed["nodes_gone_after"] < 3.0, killed
+    assert killed["nodes_gone_after"] < 5.0, killed
     assert left_after_sweep == [], "node processes outlived the sweep"
     label = killed["run"]
     retried = [line for line in lines if "retrying once" in line]
