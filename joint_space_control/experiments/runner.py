@@ -137,6 +137,8 @@ def _processes_naming(directory: Path) -> list[int]:
     run's nodes: their ``--params-file`` is in ``<run>/logs``)."""
     needle = os.fsencode(str(directory) + os.sep)
     found = []
+    if not os.path.isdir("/proc"):  # not Linux: nothing to see, the bag is awaited alone
+        return found
     for entry in os.scandir("/proc"):
         if not entry.name.isdigit():
             continue
