@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.experiments import practice, views
+from joint_space_control.experiments.boundaries import gravity_bound
 from joint_space_control.experiments.views import Outcome, RunView
 
 _fmt, _joints, _model, _vec = views.fmt, views.joints, views.model, views.vec
@@ -58,20 +59,6 @@ def pd_offset(runs: list[RunView], rtol: float = 0.02) -> list[Outcome]:
             )
         )
     return out
-
-
-def gravity_bound(robot: str, samples: int = 4000, seed: int = 0) -> float:
-    """α ≈ max over q of ‖∂g/∂q‖₂ (spectral norm), by Pinocchio's analytic derivative of
-    the generalized gravity at ``samples`` random configurations within the joint limits
-    (a lower estimate of the supremum; dense enough for these arms)."""
-    model = _model(robot)
-    lo, hi = model.position_limits
-    lo, hi = np.maximum(lo, -np.pi), np.minimum(hi, np.pi)
-    rng = np.random.default_rng(seed)
-    best = 0.0
-    for q in rng.uniform(lo, hi, size=(samples, model.n)):
-        best = max(best, float(np.linalg.norm(views.gravity_jacobian(model, q), 2)))
-    return best
 
 
 def constant_gravity(runs: list[RunView], tol: float = 1e-3) -> list[Outcome]:
