@@ -37,7 +37,7 @@ import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -46,6 +46,17 @@ from joint_space_control.arrays import per_joint
 if TYPE_CHECKING:
     from joint_space_control.experiments.scenario import Axis, Scenario
     from joint_space_control.model.dynamics import RobotModel
+
+
+class Settings(Protocol):
+    """What a boundary reads of a run: a :class:`~.scenario.Scenario`, or a check's
+    :class:`~.views.RunView`."""
+
+    robot: str
+    plant: dict[str, Any]
+    parameters: dict[str, Any]
+    reference: dict[str, Any]
+
 
 #: Samples of the other axis per grid cell when a boundary curve is drawn across it.
 SAMPLES_PER_CELL = 4
@@ -70,7 +81,7 @@ class Boundary:
     name: str
     key: str
     label: str
-    value: Callable[[Scenario], float]
+    value: Callable[[Settings], float]
     check: Callable[[Mapping[str, Any]], None]
 
 
@@ -159,7 +170,7 @@ def saturation_onset_omega(model: RobotModel, q0: np.ndarray, delta: np.ndarray)
     return math.sqrt(best)
 
 
-def step_of(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+def step_of(scenario: Settings) -> tuple[np.ndarray, np.ndarray]:
     """(q0, Δ) of a step scenario: the plant's initial positions (clipped into the joint
     limits, as the plant does) and the step to the reference's target [rad]."""
     if scenario.reference.get("shape") != "step":
@@ -171,7 +182,7 @@ def step_of(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     return q0, target - q0
 
 
-def saturation_onset(scenario: Scenario) -> float:
+def saturation_onset(scenario: Settings) -> float:
     """:func:`saturation_onset_omega` of a run's settings (controller model, q0, target)."""
     q0, delta = step_of(scenario)
     return saturation_onset_omega(controller_model(scenario.robot, scenario.parameters), q0, delta)
@@ -188,7 +199,7 @@ def _check_saturation(data: Mapping[str, Any]) -> None:
         raise ValueError("boundary saturation_onset: needs a step reference")
 
 
-def alpha_of(scenario: Scenario) -> float:
+def alpha_of(scenario: Settings) -> float:
     """α of a run's plant (:func:`gravity_bound` with ``plant.payload_mass``)."""
     return gravity_bound(scenario.robot, float(scenario.plant.get("payload_mass", 0.0)))
 
@@ -204,14 +215,14 @@ BOUNDARIES: dict[str, Boundary] = {
         Boundary(
             "kp_alpha",
             "parameters.kp",
-            "K_P = α (sufficient for g(q_d) compensation)",
+            "theory: K_P = α (larger K_P converges: sufficient condition)",
             alpha_of,
             _check_alpha,
         ),
         Boundary(
             "saturation_onset",
             "parameters.omega_n",
-            "saturation onset: max |τ_i(0)| / τ_max,i = 1",
+            "theory: saturation onset, |τ_i(0)| = τ_max,i at the step (larger ω_n saturates)",
             saturation_onset,
             _check_saturation,
         ),
