@@ -95,12 +95,21 @@ def run_experiment(
 
 def _result_json(result: ExperimentResult, short: bool) -> dict:
     s = result.scenario
+    v = s.variants
+    grid_axes = v.axes if v is not None else ()
+    index = {label: v.grid_index[k] for k, (label, _) in enumerate(v.runs)} if grid_axes else {}
     runs = []
     for r in result.runs:
         run = {"label": r.label, "dir": str(r.out), "error": r.error, "events": r.events}
         if r.namespace:  # a robot of a world of several
             run.update(robot=r.scenario.robot, controller=r.scenario.controller)
+        if r.label in index:  # where the run sits in its grid
+            run["grid_index"] = list(index[r.label])
         runs.append(run)
+    grid = {}
+    if grid_axes:
+        axes = [{"key": a.key, "name": a.name, "values": list(a.values)} for a in grid_axes]
+        grid = {"grid": {"axes": axes, "boundary": v.boundary}}
     return {
         "scenario": s.name,
         "title": s.title,
@@ -112,6 +121,7 @@ def _result_json(result: ExperimentResult, short: bool) -> dict:
         "errors": result.errors,
         "runs": runs,
         "checks": [jsonable(o.__dict__) for o in result.outcomes],  # NaN, ±inf: null
+        **grid,
     }
 
 

@@ -3,6 +3,7 @@ the heat maps themselves from synthetic results, and the checks that judge grids
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -449,3 +450,7 @@ def test_the_results_page_shows_a_grids_heat_maps_in_its_question(tmp_path):
     section5 = page[page.index("## THEORY.md §5") :]
     assert "### 7. t" in section5 and "figures/g_sweep.png" in section5
     assert (tmp_path / "docs" / "figures" / "g_sweep.png").is_file()
+    (entry,) = json.loads((tmp_path / "docs" / "results.json").read_text())["experiments"]
+    assert [a["values"] for a in entry["grid"]["axes"]] == [[0.6, 1.0, 1.4], [5, 10, 20, 40]]
+    assert entry["grid"]["boundary"] == "saturation_onset"
+    assert [r["grid_index"] for r in entry["runs"]] == [[0, 0], [0, 3], [2, 0], [2, 3]]
