@@ -186,10 +186,13 @@ def bars(result: Any, path: Path) -> list[str]:
 
 # --------------------------------------------------------------------------- heat maps
 def tick(value: Any) -> str:
-    """A grid value as a tick label: numbers in 3 significant digits, lists joined."""
+    """A grid value as a tick label: whole numbers as they are (1500, not 1.5e+03), others
+    in 3 significant digits, lists joined by /."""
     if isinstance(value, list | tuple):
         return "/".join(tick(v) for v in value)
     if isinstance(value, float):
+        if value.is_integer() and abs(value) < 1e6:
+            return str(int(value))
         return f"{value:.3g}"
     return str(value)
 

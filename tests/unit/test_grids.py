@@ -318,6 +318,13 @@ def test_cell_text_and_ticks_stay_short():
         "1",
     ]
     assert sweep_figures.tick([100.0, 50]) == "100/50" and sweep_figures.tick(0.6) == "0.6"
+    assert [sweep_figures.tick(x) for x in (1500.0, 2200.0, 1.0, 0.125, 1e7)] == [
+        "1500",
+        "2200",
+        "1",
+        "0.125",
+        "1e+07",
+    ]
 
 
 # --------------------------------------------------------------------------- checks
