@@ -305,7 +305,7 @@ def heat_maps(result: Any, path: Path) -> list[str]:
             plane, ran, failed = values[at], grid.ran[at], grid.failed[at]
             shown = np.ma.masked_invalid(plane)
             if np.isfinite(plane).any():
-                norm = _norm(metric, plane)
+                norm = _norm(metric, values)  # one colour scale for every row of panels
                 image = ax.imshow(shown, origin="lower", cmap="viridis", norm=norm, aspect="auto")
                 fig.colorbar(image, ax=ax, fraction=0.046, pad=0.03)
             else:
@@ -356,6 +356,8 @@ def heat_maps(result: Any, path: Path) -> list[str]:
         handles.append(Patch(fc="0.85", ec="0.4", hatch="xxx", label="run failed"))
     if undefined:
         handles.append(Patch(fc="0.88", label="n/a: not defined for the run"))
+    if not grid.ran.all():
+        handles.append(Patch(fc="white", ec="0.6", label="blank: not run (short form)"))
     height = fig.get_figheight()
     fig.suptitle(_title(result), fontsize=11, y=1 - 0.08 / height, va="top")
     top = 1 - (0.62 if handles else 0.4) / height
