@@ -3,7 +3,7 @@
 - RunPool itself: a failed task is retried once, then fails; a worker killed under a task
   is a failure retried once; cancel() drops the queued tasks and stops the running ones,
   on threads and on Dask alike; a bad scheduler address is an error.
-- The same lockstep sweep (3 × 3 runs) gives bit-identical metrics, events and recorded
+- The same lockstep sweep (a 3 × 3 grid) gives bit-identical metrics, events and recorded
   states on the threads pool and on a 2-worker LocalCluster.
 - A Dask worker SIGKILLed mid-sweep: the run is retried (logged) and the sweep completes,
   and the killed worker's nodes are gone within seconds.
@@ -41,13 +41,12 @@ pytestmark = pytest.mark.integration
 
 MARKER = "JSC_TEST_MARKER"
 
-#: A 3 × 3 sweep of short lockstep runs: ω_n × the controller model's mass scale under
-#: inverse dynamics on the planar arm. Written as ``variants: runs:``; once ``variants:
-#: grid:`` (scenario.py, issue 18 part 1) is on main, this becomes a grid of the two keys.
+#: A 3 × 3 grid of short lockstep runs: ω_n × the controller model's mass scale under
+#: inverse dynamics on the planar arm (``variants: grid:``, scenario.py).
 OMEGAS = (8.0, 12.0, 16.0)
 MASS_SCALES = (0.8, 1.0, 1.2)
-SWEEP = """
-title: distributed sweep test (omega_n x model_mass_scale)
+SCENARIO = """
+title: distributed sweep test
 question: 7
 robot: planar_2dof
 duration: {duration}
@@ -57,26 +56,37 @@ controller: inverse_dynamics_controller
 parameters: {{law: inverse_dynamics, omega_n: 10.0, zeta: 1.0}}
 reference: {{shape: step, target: [-0.9, 0.35]}}
 variants:
-  name: omega_n x mass
-  runs:
-{runs}
+{variants}
 """
 
 
-def sweep_file(directory: Path, runs: list[tuple[str, float, float]], duration=0.5) -> Path:
-    """A scenario file of ``runs`` (label, ω_n, model mass scale)."""
+def grid_file(directory: Path, duration: float = 0.5) -> Path:
+    """The 3 × 3 grid of OMEGAS × MASS_SCALES as a scenario file."""
+    variants = (
+        f"  grid:\n"
+        f"    - {{key: parameters.omega_n, values: {list(OMEGAS)}}}\n"
+        f"    - {{key: parameters.model_mass_scale, values: {list(MASS_SCALES)}}}"
+    )
+    path = directory / "sweep.yaml"
+    path.write_text(SCENARIO.format(duration=duration, variants=variants))
+    return path
+
+
+def grid_labels() -> list[str]:
+    """The grid's run labels, row-major (the last axis fastest)."""
+    return [f"omega_n={w:g},model_mass_scale={m:g}" for w in OMEGAS for m in MASS_SCALES]
+
+
+def runs_file(directory: Path, runs: list[tuple[str, float, float]], duration: float) -> Path:
+    """A scenario file of the explicit ``runs`` (label, ω_n, model mass scale)."""
     lines = [
         f"    - {{label: {label}, set: {{parameters.omega_n: {w}, "
         f"parameters.model_mass_scale: {m}}}}}"
         for label, w, m in runs
     ]
     path = directory / "sweep.yaml"
-    path.write_text(SWEEP.format(duration=duration, runs="\n".join(lines)))
+    path.write_text(SCENARIO.format(duration=duration, variants="  runs:\n" + "\n".join(lines)))
     return path
-
-
-def grid() -> list[tuple[str, float, float]]:
-    return [(f"w{w:g}_m{m:g}", w, m) for w in OMEGAS for m in MASS_SCALES]
 
 
 # -- processes the test started ------------------------------------------------------------
@@ -350,12 +360,12 @@ def same(a: Any, b: Any) -> bool:
 
 @pytest.mark.timeout(900)
 def test_the_same_sweep_is_bit_identical_on_threads_and_on_a_local_cluster(tmp_path, marker):
-    scenario = scenarios.load(str(sweep_file(tmp_path, grid())))
-    assert len(scenario.runs()) == 9
+    scenario = scenarios.load(str(grid_file(tmp_path)))
+    assert [label for label, _ in scenario.runs()] == grid_labels()
     on_threads = run_scenario(scenario, tmp_path / "threads", pool=None, log=lambda _: None)
     with RunPool(2, None, lambda _: None) as pool:
         on_dask = run_scenario(scenario, tmp_path / "dask", pool=pool, log=lambda _: None)
-    assert [r.label for r in on_threads] == [r.label for r in on_dask] == [g[0] for g in grid()]
+    assert [r.label for r in on_threads] == [r.label for r in on_dask] == grid_labels()
     for a, b in zip(on_threads, on_dask, strict=True):
         assert a.error is None and b.error is None, (a.error, b.error)
         assert a.out.parent.name == "threads" and b.out.parent.name == "dask"
@@ -378,7 +388,7 @@ def test_a_worker_killed_mid_sweep_is_retried_and_leaves_no_node(tmp_path, marke
     SIGKILLed: its nodes stop by themselves within seconds, the run is retried (logged),
     and the sweep completes with the retried run the same as its twin."""
     runs = [("a", 8.0, 1.0), ("b", 12.0, 0.8), ("a_again", 8.0, 1.0), ("c", 16.0, 1.2)]
-    scenario = scenarios.load(str(sweep_file(tmp_path, runs, duration=2.0)))
+    scenario = scenarios.load(str(runs_file(tmp_path, runs, duration=2.0)))
     out = tmp_path / "out"
     lines: list[str] = []
     killed: dict[str, Any] = {}
@@ -439,7 +449,7 @@ def test_a_worker_killed_mid_sweep_is_retried_and_leaves_no_node(tmp_path, marke
 def test_ctrl_c_of_jsc_experiment_on_a_local_cluster_leaves_nothing(tmp_path, marker):
     """Ctrl-C as a terminal sends it: SIGINT to the whole process group (jsc, the Dask
     workers it spawned); exit 130, no node and no worker process left."""
-    path = sweep_file(tmp_path, grid(), duration=3.0)
+    path = grid_file(tmp_path, duration=3.0)
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     out = tmp_path / "out"
     proc = subprocess.Popen(
