@@ -4,7 +4,8 @@
   is a failure retried once; cancel() drops the queued tasks and stops the running ones,
   on threads and on Dask alike; a bad scheduler address is an error.
 - The same lockstep sweep (a 3 × 3 grid) gives bit-identical metrics, events and recorded
-  states on the threads pool and on a 2-worker LocalCluster.
+  states on the threads pool and on a 2-worker LocalCluster, and its heat maps are drawn.
+- ``jsc bench``'s sweep section, tiny: both cluster sizes timed, phase by phase.
 - A Dask worker SIGKILLed mid-sweep: the run is retried (logged) and the sweep completes,
   and the killed worker's nodes are gone within seconds.
 - Ctrl-C of ``jsc experiment`` on the LocalCluster: exit 130, no node and no worker left.
@@ -35,6 +36,7 @@ import pytest
 
 from joint_space_control.experiments import scenario as scenarios
 from joint_space_control.experiments.distributed import RunPool, on_cancel
+from joint_space_control.experiments.experiment import run_experiment
 from joint_space_control.experiments.runner import run_scenario
 
 pytestmark = pytest.mark.integration
@@ -362,13 +364,17 @@ def same(a: Any, b: Any) -> bool:
 def test_the_same_sweep_is_bit_identical_on_threads_and_on_a_local_cluster(tmp_path, marker):
     scenario = scenarios.load(str(grid_file(tmp_path)))
     assert [label for label, _ in scenario.runs()] == grid_labels()
-    on_threads = run_scenario(scenario, tmp_path / "threads", pool=None, log=lambda _: None)
-    with RunPool(2, None, lambda _: None) as pool:
-        on_dask = run_scenario(scenario, tmp_path / "dask", pool=pool, log=lambda _: None)
+    quiet = lambda _: None  # noqa: E731
+    threads = run_experiment(scenario, tmp_path / "threads", pool=None, log=quiet)
+    with RunPool(2, None, quiet) as pool:
+        dask = run_experiment(scenario, tmp_path / "dask", pool=pool, log=quiet)
+    # the grid's heat maps, drawn here from what the workers wrote
+    assert (dask.out / "sweep.png").is_file() and (threads.out / "sweep.png").is_file()
+    on_threads, on_dask = threads.runs, dask.runs
     assert [r.label for r in on_threads] == [r.label for r in on_dask] == grid_labels()
     for a, b in zip(on_threads, on_dask, strict=True):
         assert a.error is None and b.error is None, (a.error, b.error)
-        assert a.out.parent.name == "threads" and b.out.parent.name == "dask"
+        assert a.out.parent.parent.name == "threads" and b.out.parent.parent.name == "dask"
         step = a.controller["steps"][0]["joints"]["joint1"]
         assert math.isfinite(step["overshoot_percent"])  # the metrics hold numbers
         assert same(simulated(a.metrics), simulated(b.metrics)), a.label
