@@ -8,8 +8,9 @@ times its phases (:attr:`RunResult.timings`): ``start`` (the node processes star
 imported and connected), ``run`` (the simulated time, lockstep), ``stop`` (the recorder's
 tail taken, the nodes stopped) and ``analysis`` (bag → report and figures); what remains of
 a worker's time per run (``other``) is the task's own cost (dispatch, a worker's first
-imports, results sent back). The CPU time of the sweep's processes (workers and nodes)
-against the wall time × cores says whether the machine's cores were the limit.
+imports, results sent back). The CPU time of the sweep's processes (workers and nodes) per
+run gives the rate the machine's cores allow at most (``cpu_bound_runs_per_minute``), and
+how busy the machine was (all its processes) says how much of them the sweep had.
 """
 
 from __future__ import annotations
@@ -93,6 +94,7 @@ def throughput(
     first."""
     scenario = sweep_scenario(runs, duration)
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = cores or 1
     rows = []
     for n in workers:
         target = out / f"workers_{n}"
@@ -122,6 +124,9 @@ def throughput(
                 "phases_s": phases,
                 "other_s": lane - sum(phases.values()),
                 "cpu_seconds": cpu,
+                "cpu_seconds_per_run": cpu / runs,
+                # the rate if the machine's cores did nothing else: what CPU alone allows
+                "cpu_bound_runs_per_minute": 60.0 * cores * runs / cpu if cpu > 0 else math.nan,
                 "cpu_cores_used": cpu / total,
                 "machine_busy_fraction": meter.busy(),
                 "load_average_1min_before": load,
@@ -152,7 +157,7 @@ def format_sweep(sweep: dict[str, Any]) -> list[str]:
         f"sweep on a Dask LocalCluster: {first['runs']} runs of {first['simulated_s']:g} s "
         f"simulated, {sweep['robot']} {sweep['law']}, lockstep ({sweep['cores']} cores)",
         "  workers  runs/min  worker s/run   start    run   stop  analysis  other  "
-        "CPU cores used  machine busy  failed",
+        "CPU s/run  CPU cores used  machine busy  failed",
     ]
     for row in rows:
         p = row["phases_s"]
@@ -161,12 +166,14 @@ def format_sweep(sweep: dict[str, Any]) -> list[str]:
             f"  {row['workers']:>7}  {row['runs_per_minute']:>8.1f}"
             f"  {row['worker_seconds_per_run']:>12.1f}"
             f"  {p['start']:>6.1f} {p['run']:>6.1f} {p['stop']:>6.1f} {p['analysis']:>9.1f}"
-            f"  {row['other_s']:>5.1f}  {row['cpu_cores_used']:>14.2f}"
+            f"  {row['other_s']:>5.1f}  {row['cpu_seconds_per_run']:>9.1f}"
+            f"  {row['cpu_cores_used']:>14.2f}"
             f"  {'-' if busy is None else f'{100 * busy:.0f} %':>12}  {row['failed']:>6}"
         )
     lines.append(
         f"  {rows[-1]['workers']} workers / {first['workers']}: "
-        f"{sweep['speedup']:.2f}x the runs per minute"
+        f"{sweep['speedup']:.2f}x the runs per minute; the CPU time per run allows at most "
+        f"{rows[-1]['cpu_bound_runs_per_minute']:.1f} runs/min on {sweep['cores']} idle cores"
     )
     lines.append("")
     return lines

@@ -509,6 +509,7 @@ def test_bench_sweep_section_times_one_sweep_on_one_and_two_workers(tmp_path, ma
         # a worker's time per run holds the run's phases and the task's own cost
         assert row["other_s"] >= 0, row
         assert row["cpu_seconds"] > 0 and row["cpu_cores_used"] > 0
+        assert row["cpu_bound_runs_per_minute"] > 0
     assert sweep["speedup"] == pytest.approx(
         sweep["rows"][1]["runs_per_minute"] / sweep["rows"][0]["runs_per_minute"]
     )
