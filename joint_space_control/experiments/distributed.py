@@ -229,8 +229,14 @@ class _Dask:
     cluster behind ``address``."""
 
     def __init__(self, jobs: int, address: str | None) -> None:
-        import dask
-        from distributed import Client, Event, LocalCluster
+        try:
+            import dask
+            from distributed import Client, Event, LocalCluster
+        except ImportError as err:  # a ROS workspace without the venv's extras
+            raise ValueError(
+                f"runs on Dask need dask[distributed] ({err}): pip install "
+                "'dask[distributed]', or run them in threads (--scheduler threads)"
+            ) from None
 
         self.cluster = None
         self.address = address
