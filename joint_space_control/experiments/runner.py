@@ -26,7 +26,7 @@ from typing import Any
 from joint_space_control.analysis.bag import BagReader, ControllerState, JointStates, joint_states
 from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
-from joint_space_control.experiments.loop import ClosedLoop
+from joint_space_control.experiments.loop import TRUTH_TOPIC, ClosedLoop
 from joint_space_control.experiments.probe import in_namespace
 from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
 from joint_space_control.model.dynamics import RobotModel
@@ -65,10 +65,6 @@ class RunResult:
         assert self.metrics is not None
         return self.metrics["controllers"][self.node]
 
-
-#: The plant's true state beside an imperfect measurement (docs/plant.md), in the robot's
-#: namespace.
-TRUTH_TOPIC = "sim_bridge/true_joint_states"
 
 _active: set[ClosedLoop] = set()
 _active_lock = threading.Lock()
