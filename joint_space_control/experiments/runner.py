@@ -31,7 +31,7 @@ from joint_space_control.analysis.bag import BagReader, ControllerState, JointSt
 from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
 from joint_space_control.experiments.distributed import RunPool, on_cancel, stop_all
-from joint_space_control.experiments.loop import ClosedLoop
+from joint_space_control.experiments.loop import TRUTH_TOPIC, ClosedLoop
 from joint_space_control.experiments.probe import in_namespace
 from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
 from joint_space_control.model.dynamics import RobotModel
@@ -74,10 +74,6 @@ class RunResult:
         assert self.metrics is not None
         return self.metrics["controllers"][self.node]
 
-
-#: The plant's true state beside an imperfect measurement (docs/plant.md), in the robot's
-#: namespace.
-TRUTH_TOPIC = "sim_bridge/true_joint_states"
 
 #: What a run writes into its directory (removed before a retry: a failed attempt's).
 RUN_FILES = ("bag", "report", "logs", "events.json", "error.txt")

@@ -321,9 +321,6 @@ WALL_CLOCK = ("bag", "start_time_ns", "duration_s", "message_count")
 WALL_CLOCK_TOPICS = (
     "/diagnostics",  # published once a wall-clock second
     "/parameter_events",  # the nodes' start-up declarations: seen or not as discovery goes
-    # ClosedLoop.settle_recording awaits every joint state, not every /clock tick: under
-    # load the bag's /clock can lack its tail (seen: 1577 of 2001), nothing else
-    "/clock",
 )
 WALL_CLOCK_CONTROLLER = ("period_statistics.receive_period_ms",)
 
