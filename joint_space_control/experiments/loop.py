@@ -27,8 +27,10 @@ from joint_space_control.experiments.scenario import RobotSetup
 from joint_space_control.recording.selection import world_topics
 
 #: After the last state of a run, the recorder is asked every RECORD_POLL [s] what it holds,
-#: until it has the whole run (at most RECORD_SETTLE_MAX [s]).
+#: until it has the whole run and its counts have not changed for RECORD_QUIET [s] (at most
+#: RECORD_SETTLE_MAX [s]).
 RECORD_POLL = 0.1
+RECORD_QUIET = 0.5
 RECORD_SETTLE_MAX = 60.0
 #: The plant's true state beside an imperfect measurement, in a robot's namespace.
 TRUTH_TOPIC = "sim_bridge/true_joint_states"
@@ -184,23 +186,25 @@ class ClosedLoop:
         lockstep plant runs faster than the recorder writes, and what is still on its way
         when the plant's process ends is lost (seen: the last 160–1260 of 3000 states). The
         plant is paused by then. The recorder's ``~/flush`` answers what it has recorded per
-        topic: the wait ends once it holds, of each robot, every joint state the probe
-        received and as many commands, controller states and ``/clock`` messages (one of
-        each per state in lockstep; the true states too when the plant publishes them), and
-        its counts of the run's topics have stopped growing. (Under load the recorder takes
-        its topics unevenly: seen, the joint states complete while 300 of 3000 controller
-        states were still on their way.)"""
+        topic: the wait ends once it holds, of each robot, every joint state and ``/clock``
+        message the simulator published (and every true state, when it publishes them) and
+        at least the commands the probe received, and its counts of the run's topics have
+        then not changed for RECORD_QUIET (a controller's ``~/state``, one per control
+        period, goes out with its command). Under load the recorder takes its topics
+        unevenly: seen, the joint states complete while 300 of 3000 controller states were
+        still on their way."""
         if self.bag is None:
             return
         expected: dict[str, int] = {}
         for r in self.robots:
             n = len(self.probe.recordings[r.name].stamps)
-            topics = ("joint_states", "effort_command", f"{r.controller}/state")
-            expected.update(dict.fromkeys(_absolute(r.name, *topics), n))
+            expected[_absolute(r.name, "joint_states")[0]] = n
             expected[_absolute(r.name, TRUTH_TOPIC)[0]] = n  # if published at all
+            expected[_absolute(r.name, "effort_command")[0]] = self.probe.commands[r.name]
         expected["/clock"] = max(expected.values())
         deadline = time.monotonic() + timeout
         previous: dict[str, int] | None = None
+        since = time.monotonic()
         while True:
             counts = self.recorded_counts()
             run = {k: v for k, v in counts.items() if k not in _BACKGROUND_TOPICS}
@@ -209,14 +213,15 @@ class ClosedLoop:
                 for topic, n in expected.items()
                 if not (topic.endswith(TRUTH_TOPIC) and counts.get(topic, 0) == 0)
             )
-            if complete and run == previous:
+            if run != previous or not complete:
+                previous, since = run, time.monotonic()
+            elif time.monotonic() - since >= RECORD_QUIET:
                 return
             if time.monotonic() > deadline:
                 raise RuntimeError(
                     f"the recorder did not take the run's tail within {timeout:g} s: "
-                    f"recorded {counts}, the probe saw {expected}"
+                    f"recorded {counts}, at least {expected} expected"
                 )
-            previous = run
             time.sleep(RECORD_POLL)
 
     def recorded_counts(self) -> dict[str, int]:

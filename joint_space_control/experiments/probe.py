@@ -82,6 +82,7 @@ class LoopProbe(RosClient):
         # so that run_until() stops at the first state at or after its time.
         self._observed = ControlPath(self.node)
         self.answered = dict.fromkeys(self.namespaces, -1)  # newest stamp on effort_command
+        self.commands = dict.fromkeys(self.namespaces, 0)  # commands received
         self._ref_pubs = {}
         for ns in self.namespaces:
             self._observed.subscription(
@@ -118,6 +119,7 @@ class LoopProbe(RosClient):
 
     def _on_command(self, namespace: str, msg: JointState, info: object = None) -> None:
         self.answered[namespace] = max(self.answered[namespace], stamp_to_ns(msg.header.stamp))
+        self.commands[namespace] += 1
 
     # -- spinning ----------------------------------------------------------------------
     def spin_once(self) -> None:
