@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from joint_space_control.experiments import scenario as scenarios
+from joint_space_control.experiments.params_file import with_params_file
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -27,13 +28,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--report", type=Path, default=None, help="also write DIR/results.md (e.g. docs/)"
     )
+    p.add_argument(
+        "--params-file",
+        type=Path,
+        default=None,
+        help="ROS parameter file whose entry for the scenario's controller overrides the "
+        "scenario's parameters (e.g. the best_params.yaml of jsc tune)",
+    )
     p.set_defaults(handler=_handle)
 
 
 def _handle(args: argparse.Namespace) -> int:
     if args.list:
         return list_scenarios()
-    return run(args.names, args.all, args.out, args.short, args.jobs, args.report)
+    return run(
+        args.names, args.all, args.out, args.short, args.jobs, args.report, args.params_file
+    )
 
 
 def list_scenarios() -> int:
@@ -59,6 +69,7 @@ def run(
     short: bool,
     jobs: int,
     report: Path | None,
+    params_file: Path | None = None,
 ) -> int:
     # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
     from joint_space_control.experiments.experiment import (
@@ -75,6 +86,8 @@ def run(
         return 2
     try:
         loaded = [scenarios.load(n) for n in names]
+        if params_file is not None:
+            loaded = [with_params_file(s, params_file) for s in loaded]
     except ValueError as err:
         print(f"jsc experiment: error: {err}", file=sys.stderr)
         return 2
