@@ -50,8 +50,8 @@ def list_scenarios() -> int:
     for name, path in scenarios.available().items():
         try:
             s = scenarios.load(str(path))
-            runs = f"{len(s.runs())} runs" if s.variants else "1 run"
-            print(f"{name:32s} Q{s.question}  {s.robot:12s} {runs:8s} {s.title}")
+            runs = s.variants.describe() if s.variants else "1 run"
+            print(f"{name:32s} Q{s.question}  {s.robot:12s} {runs:18s} {s.title}")
         except ValueError as err:
             print(f"{name:32s} INVALID: {err}")
     return 0

@@ -2,22 +2,22 @@
 
 Files per experiment ``<out>/<name>/``: one run directory per variant (``bag/``,
 ``report/``, ``logs/``, ``events.json``), ``result.json`` (the checks with their numbers),
-``summary.md``, ``sweep.png`` for a sweep, and the figures the scenario names (``figures``,
-:mod:`~joint_space_control.experiments.figures`). A world of several robots is one run
-(one bag, one ``report/`` with every controller) judged per robot: each check sees each
-robot as a run of its own, labelled with the robot's name.
+``summary.md``, ``sweep.png`` for a sweep (bars, or heat maps of a grid:
+:mod:`~joint_space_control.experiments.sweep_figures`), and the figures the scenario names
+(``figures``, :mod:`~joint_space_control.experiments.figures`). A world of several robots is
+one run (one bag, one ``report/`` with every controller) judged per robot: each check sees
+each robot as a run of its own, labelled with the robot's name.
 """
 
 from __future__ import annotations
 
-import math
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from joint_space_control.analysis.report import write_metrics
-from joint_space_control.experiments import figures
+from joint_space_control.experiments import figures, sweep_figures
 from joint_space_control.experiments.checks import Outcome, RunView, evaluate
 from joint_space_control.experiments.runner import RunResult, run_scenario
 from joint_space_control.experiments.scenario import Scenario
@@ -85,7 +85,7 @@ def run_experiment(
                 errors.append(f"check {spec.get('check')}: {type(err).__name__}: {err}")
     result = ExperimentResult(scenario, out, runs, outcomes, errors)
     if scenario.variants is not None and views:
-        _sweep_plot(result, out / "sweep.png")
+        sweep_figures.draw(result, out / "sweep.png")
     if views:
         result.figures = figures.draw(result)
     write_metrics(_result_json(result, short), out / "result.json")
@@ -95,12 +95,21 @@ def run_experiment(
 
 def _result_json(result: ExperimentResult, short: bool) -> dict:
     s = result.scenario
+    v = s.variants
+    grid_axes = v.axes if v is not None else ()
+    index = {label: v.grid_index[k] for k, (label, _) in enumerate(v.runs)} if grid_axes else {}
     runs = []
     for r in result.runs:
         run = {"label": r.label, "dir": str(r.out), "error": r.error, "events": r.events}
         if r.namespace:  # a robot of a world of several
             run.update(robot=r.scenario.robot, controller=r.scenario.controller)
+        if r.label in index:  # where the run sits in its grid
+            run["grid_index"] = list(index[r.label])
         runs.append(run)
+    grid = {}
+    if grid_axes:
+        axes = [{"key": a.key, "name": a.name, "values": list(a.values)} for a in grid_axes]
+        grid = {"grid": {"axes": axes, "boundary": v.boundary}}
     return {
         "scenario": s.name,
         "title": s.title,
@@ -112,6 +121,7 @@ def _result_json(result: ExperimentResult, short: bool) -> dict:
         "errors": result.errors,
         "runs": runs,
         "checks": [jsonable(o.__dict__) for o in result.outcomes],  # NaN, ±inf: null
+        **grid,
     }
 
 
@@ -131,8 +141,7 @@ def summary_markdown(result: ExperimentResult, base: Path, figures: Path | None 
         lines += [f"`{s.name}`: {len(s.robots)} robots in one world, one run: {world}", ""]
     else:
         lines += [
-            f"`{s.name}`: {s.robot}, `{s.controller}`, "
-            + (f"{len(result.runs)} runs over {s.variants.name}" if s.variants else "one run"),
+            f"`{s.name}`: {s.robot}, `{s.controller}`, " + _runs_text(result),
             "",
         ]
     for o in result.outcomes:
@@ -154,6 +163,19 @@ def summary_markdown(result: ExperimentResult, base: Path, figures: Path | None 
     return "\n".join(lines)
 
 
+def _runs_text(result: ExperimentResult) -> str:
+    """``one run``, ``4 runs over mismatch``, or ``4 runs of a 5×5 grid (model_mass_scale ×
+    omega_n)`` (the short form runs some of the grid)."""
+    v = result.scenario.variants
+    if v is None:
+        return "one run"
+    if v.axes:
+        shape = "×".join(str(n) for n in v.shape)
+        runs = len({r.label for r in result.runs})
+        return f"{runs} runs of a {shape} grid ({' × '.join(a.name for a in v.axes)})"
+    return f"{len(result.runs)} runs over {v.name}"
+
+
 def _relative(path: Path, base: Path) -> str:
     try:
         return str(path.resolve().relative_to(base.resolve()))
@@ -163,62 +185,16 @@ def _relative(path: Path, base: Path) -> str:
 
 def _key_plots(result: ExperimentResult) -> list[Path]:
     ok = [r for r in result.runs if r.error is None]
-    if result.figures:  # the scenario's own figures say what its runs show
-        return list(result.figures)
     sweep = result.out / "sweep.png"
+    grid = result.scenario.variants is not None and bool(result.scenario.variants.axes)
+    if result.figures:  # the scenario's own figures say what its runs show (a grid: after
+        # its heat maps, which are its answer)
+        return ([sweep] if grid and sweep.is_file() else []) + list(result.figures)
     if sweep.is_file():  # and the last run's positions
         standard, shown = [sweep], ok[-1:]
     else:  # the run's positions: of its one robot, or of each robot of its world
         standard, shown = [], ok
     return standard + [r.figures["positions"] for r in shown if "positions" in r.figures]
-
-
-def _sweep_plot(result: ExperimentResult, path: Path) -> None:
-    """The swept runs side by side: tracking RMS, peak torque and settling time per run
-    (a quantity no run defines, e.g. settling without a step, gets no panel)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    runs = [r for r in result.runs if r.error is None]
-    labels = [r.label for r in runs]
-    rms, peak, settle = [], [], []
-    for r in runs:
-        c = r.controller
-        section = (
-            c["tracking_error"].get("moving_reference") or c["tracking_error"]["whole_record"]
-        )
-        rms.append(max(_finite(section["rms"].values())))
-        peak.append(max(_finite(c["torque_demand"]["peak_abs"].values())))
-        steps = c["steps"]
-        values = [j.get("settling_time_2") for j in (steps[0]["joints"].values() if steps else [])]
-        settle.append(max(_finite(values), default=math.nan))
-    panels = [
-        (values, title)
-        for values, title in (
-            (rms, "RMS tracking error [rad]"),
-            (peak, "peak |τ| [N·m]"),
-            (settle, "2 % settling time [s]"),
-        )
-        if _finite(values)  # a panel with no defined value is not drawn
-    ]
-    if not panels:
-        return
-    fig, axes = plt.subplots(1, len(panels), figsize=(4 * len(panels), 3.6), squeeze=False)
-    for ax, (values, title) in zip(axes[0], panels, strict=True):
-        ax.bar(range(len(values)), values, color="tab:blue")
-        ax.set_xticks(range(len(values)), labels, rotation=30, ha="right", fontsize=8)
-        ax.set_title(title, fontsize=10)
-        ax.grid(True, axis="y", alpha=0.3)
-    fig.suptitle(f"{result.scenario.title} ({result.scenario.robot})", fontsize=11)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-def _finite(values) -> list[float]:
-    return [float(v) for v in values if v is not None and math.isfinite(float(v))]
 
 
 def results_page(results: list[ExperimentResult], docs: Path, short: bool) -> Path:

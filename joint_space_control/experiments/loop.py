@@ -11,6 +11,7 @@ namespace; the world steps once every controller has answered.
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from collections.abc import Mapping, Sequence
@@ -25,10 +26,12 @@ from joint_space_control.experiments.processes import ProcessGroup
 from joint_space_control.experiments.scenario import RobotSetup
 from joint_space_control.recording.selection import world_topics
 
-#: After the last state of a run, the nodes stop once the bag has not grown for this long
-#: [s] (longer than the recorder's flush_period while idle), or after RECORD_SETTLE_MAX.
-RECORD_QUIET = 1.5
-RECORD_SETTLE_MAX = 20.0
+#: After the last state of a run, the recorder is asked every RECORD_POLL [s] what it holds,
+#: until it has the whole run (at most RECORD_SETTLE_MAX [s]).
+RECORD_POLL = 0.1
+RECORD_SETTLE_MAX = 60.0
+#: Topics published by wall-time timers (they grow while the run is paused): not awaited.
+_BACKGROUND_TOPICS = frozenset({"/diagnostics", "/parameter_events", "/rosout"})
 
 
 class ClosedLoop:
@@ -171,24 +174,42 @@ class ClosedLoop:
         _, q, dq, _ = self.probe.recording.arrays()
         return q[-1], dq[-1]
 
-    def settle_recording(self) -> None:
+    def settle_recording(self, timeout: float = RECORD_SETTLE_MAX) -> None:
         """Wait until the recorder has taken the tail of the run before the nodes stop: a
         lockstep plant runs faster than the recorder writes, and what is still on its way
         when the plant's process ends is lost (seen: the last 160–1260 of 3000 states). The
-        plant is paused by then; the bag grows while the recorder works through its backlog
-        (it flushes at least every flush_period of wall time while idle), so the wait ends
-        once the bag has not grown for RECORD_QUIET seconds (at most RECORD_SETTLE_MAX)."""
+        plant is paused by then. The recorder's ``~/flush`` answers what it has recorded per
+        topic: the wait ends once it holds every joint state the probe received, of each
+        robot, and its counts of the run's topics have stopped growing (the controllers'
+        answers to the last state come just after it)."""
         if self.bag is None:
             return
-        deadline = time.monotonic() + RECORD_SETTLE_MAX
-        size, since = -1, time.monotonic()
-        while time.monotonic() < deadline:
-            now = sum(f.stat().st_size for f in self.bag.glob("*") if f.is_file())
-            if now != size:
-                size, since = now, time.monotonic()
-            elif time.monotonic() - since >= RECORD_QUIET:
+        expected = {
+            _absolute(r.name, "joint_states")[0]: len(self.probe.recordings[r.name].stamps)
+            for r in self.robots
+        }
+        deadline = time.monotonic() + timeout
+        previous: dict[str, int] | None = None
+        while True:
+            counts = self.recorded_counts()
+            run = {k: v for k, v in counts.items() if k not in _BACKGROUND_TOPICS}
+            complete = all(counts.get(topic, 0) >= n for topic, n in expected.items())
+            if complete and run == previous:
                 return
-            time.sleep(0.1)
+            if time.monotonic() > deadline:
+                raise RuntimeError(
+                    f"the recorder did not take the run's tail within {timeout:g} s: "
+                    f"recorded {counts}, the probe saw {expected}"
+                )
+            previous = run
+            time.sleep(RECORD_POLL)
+
+    def recorded_counts(self) -> dict[str, int]:
+        """The messages the recorder has written, per topic (its ``~/flush`` answer)."""
+        response = self.probe.call_trigger("/recorder/flush", check=self.group.check_alive)
+        if not response.success:
+            raise RuntimeError(f"the recorder failed: {response.message}")
+        return json.loads(response.message)
 
     def close(self) -> None:
         """Stop everything (idempotent; Ctrl-C may close a loop from another thread)."""

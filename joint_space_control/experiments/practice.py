@@ -17,15 +17,8 @@ import numpy as np
 
 from joint_space_control.analysis import frequency
 from joint_space_control.analysis.metrics import position_spread
-from joint_space_control.experiments.views import (
-    Outcome,
-    RunView,
-    fmt,
-    gravity_jacobian,
-    joints,
-    model,
-    vec,
-)
+from joint_space_control.experiments.boundaries import gravity_jacobian
+from joint_space_control.experiments.views import Outcome, RunView, fmt, joints, model, vec
 from joint_space_control.laws.disturbance import (
     coulomb_dead_band,
     inverse_dynamics_static_offset,

@@ -30,6 +30,27 @@ variants:                                  # optional: one run per value (a swee
 checks: [...]                              # theory checks, see experiments/checks.py
 ```
 
+A **grid** sweeps the product of two or more axes, in row-major order (the last axis varies
+fastest), and draws one heat map per metric (experiments/sweep_figures.py): the first axis
+gives the rows (y), the second the columns (x), each further axis a row of panels per value:
+
+```yaml
+variants:
+  name: mismatch_x_stiffness               # optional (default: the axis names joined by ×)
+  grid:
+    - {key: parameters.model_mass_scale, values: [0.6, 0.8, 1.0, 1.2, 1.4],
+       label: controller mass scale, unit: "×"}
+    - {key: parameters.omega_n, values: [5, 10, 20, 40, 80], label: "ω_n", unit: rad/s,
+       scale: log}                         # linear (default) | log: drawn evenly, labelled
+    # name: defaults to the last part of the key; also: [other keys set to the same value],
+    # e.g. {key: plant.payload_mass, also: [parameters.model_payload_mass], ...}
+  boundary: saturation_onset               # optional: a theory boundary on every heat map
+                                           # (experiments/boundaries.py)
+  short: [...]                             # optional run labels (default: the corners)
+```
+
+A grid run is labelled ``model_mass_scale=0.6,omega_n=5`` (``name=value`` per axis).
+
 Several robots in one world (one ``sim_bridge``, docs/robots.md "Several robots") replace
 ``robot``, ``controller``, ``parameters`` and ``reference`` with ``robots``, a mapping from
 each robot's name (the namespace of its topics and its controller) to its own settings;
@@ -52,6 +73,8 @@ structure and the values by the nodes when they start, as any parameter file wou
 from __future__ import annotations
 
 import copy
+import itertools
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,6 +83,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from joint_space_control.experiments import boundaries
 from joint_space_control.experiments.figures import FIGURES
 from joint_space_control.paths import experiments_dir
 from joint_space_control.trajectories import shapes
@@ -110,6 +134,85 @@ class Change:
     update: str | None = None
 
 
+SCALES = ("linear", "log")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One axis of a grid: the setting ``key`` (and each of ``also``) takes each of
+    ``values`` in turn. ``label`` and ``unit`` name it on the heat maps; on a ``log`` axis
+    the values are drawn evenly spaced and the boundaries interpolated in log(value)."""
+
+    key: str
+    name: str
+    label: str
+    unit: str
+    scale: str
+    values: tuple[Any, ...]
+    also: tuple[str, ...] = ()
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        return (self.key, *self.also)
+
+    def settings(self, value: Any) -> dict[str, Any]:
+        """What a run at ``value`` sets: ``{key: value}`` for each of :attr:`keys`."""
+        return {k: value for k in self.keys}
+
+    @property
+    def title(self) -> str:
+        """``label [unit]`` (the heat maps' axis title)."""
+        return f"{self.label} [{self.unit}]" if self.unit else self.label
+
+    @property
+    def numeric(self) -> bool:
+        """Numbers in strictly monotonic order: positions between the values are defined."""
+        if not all(_number(v) for v in self.values):
+            return False
+        d = np.diff(self._scaled(np.array(self.values, dtype=float)))
+        return bool(np.all(d > 0) or np.all(d < 0))
+
+    def _scaled(self, values: np.ndarray) -> np.ndarray:
+        return np.log10(values) if self.scale == "log" else values
+
+    def positions(self, values: Any) -> np.ndarray:
+        """Where ``values`` lie along the drawn axis, whose k-th value is at k: piecewise
+        linear in the value (in log10 of it on a log axis) between neighbouring grid values,
+        extended linearly beyond the ends (NaN where the value cannot be placed: an
+        unordered or non-numeric axis, a value ≤ 0 on a log axis)."""
+        if not self.numeric:
+            listed = values if isinstance(values, list | tuple) else [values]
+            found = [next((k for k, v in enumerate(self.values) if v == x), None) for x in listed]
+            return np.array([math.nan if k is None else k for k in found], dtype=float)
+        x = np.atleast_1d(np.asarray(values, dtype=float))
+        grid = self._scaled(np.array(self.values, dtype=float))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sx = self._scaled(x)
+        if len(grid) == 1:
+            return np.where(np.isclose(sx, grid[0]), 0.0, math.nan)
+        order = np.argsort(grid)
+        g, k = grid[order], np.arange(len(grid), dtype=float)[order]
+        inside = np.interp(sx, g, k)
+        low = k[0] + (sx - g[0]) * (k[1] - k[0]) / (g[1] - g[0])
+        high = k[-1] + (sx - g[-1]) * (k[-1] - k[-2]) / (g[-1] - g[-2])
+        out = np.where(sx < g[0], low, np.where(sx > g[-1], high, inside))
+        return np.where(np.isfinite(sx), out, math.nan)
+
+    def values_at(self, positions: Any) -> np.ndarray:
+        """The inverse of :meth:`positions` on a numeric axis: the value at each position."""
+        p = np.atleast_1d(np.asarray(positions, dtype=float))
+        grid = self._scaled(np.array(self.values, dtype=float))
+        if len(grid) == 1:
+            scaled = np.full(p.shape, grid[0])
+        else:
+            k = np.arange(len(grid), dtype=float)
+            scaled = np.interp(p, k, grid)
+            scaled = np.where(p < 0, grid[0] + p * (grid[1] - grid[0]), scaled)
+            last = len(grid) - 1
+            scaled = np.where(p > last, grid[-1] + (p - last) * (grid[-1] - grid[-2]), scaled)
+        return 10.0**scaled if self.scale == "log" else scaled
+
+
 @dataclass(frozen=True)
 class Variants:
     """A sweep: runs labelled ``label`` each setting ``{"section.name": value}``."""
@@ -117,8 +220,26 @@ class Variants:
     name: str
     runs: list[tuple[str, dict[str, Any]]]
     short: list[int]
-    """Indices of the runs kept in the short (CI) form: the first and the last, or the ones
-    ``variants.short`` names (a check that needs several runs of a group, say)."""
+    """Indices of the runs kept in the short (CI) form: the first and the last (a grid: its
+    corners), or the ones ``variants.short`` names (a check that needs several runs of a
+    group, say)."""
+    axes: tuple[Axis, ...] = ()
+    """A grid's axes (empty: a 1-D sweep or a list of runs)."""
+    grid_index: tuple[tuple[int, ...], ...] = ()
+    """A grid: each run's index along :attr:`axes`, in the order of :attr:`runs`."""
+    boundary: str | None = None
+    """A grid: the theory boundary drawn on its heat maps (experiments/boundaries.py)."""
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(len(a.values) for a in self.axes)
+
+    def describe(self) -> str:
+        """``5 runs``, or ``25 runs (5×5 grid)``."""
+        runs = f"{len(self.runs)} runs"
+        if self.axes:
+            runs += f" ({'×'.join(str(n) for n in self.shape)} grid)"
+        return runs
 
 
 @dataclass(frozen=True)
@@ -229,6 +350,10 @@ def _label(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
 def _settings_key(key: str, what: str, value: Any = None) -> str:
     if key == "controller":
         if value not in CONTROLLERS:
@@ -333,35 +458,7 @@ def parse(data: Any, name: str, path: Path) -> Scenario:
         raise ValueError("'changes' must be at strictly increasing times")
     variants = None
     if data.get("variants") is not None:
-        v = _mapping(data["variants"], "variants")
-        name_ = str(v.get("name", "variant"))
-        if "key" in v:  # one key, several values
-            key = _settings_key(str(v["key"]), "variants.key")
-            values = v.get("values")
-            if not isinstance(values, list) or not values:
-                raise ValueError("'variants.values' must be a non-empty list")
-            runs = [(f"{name_}={_label(x)}", {key: x}) for x in values]
-        else:  # several settings per run
-            raw_runs = v.get("runs")
-            if not isinstance(raw_runs, list) or not raw_runs:
-                raise ValueError("'variants' needs key + values, or runs")
-            runs = []
-            for k, run in enumerate(raw_runs):
-                run = _mapping(run, f"variants.runs[{k}]")
-                settings = _mapping(run.get("set"), f"variants.runs[{k}].set")
-                for key, value in settings.items():
-                    _settings_key(key, f"variants.runs[{k}].set", value)
-                runs.append((str(run.get("label", k)), settings))
-        labels = [label for label, _ in runs]
-        if len(set(labels)) != len(labels):
-            raise ValueError(f"variant labels must differ: {labels}")
-        short_runs = sorted({0, len(runs) - 1})
-        if v.get("short") is not None:  # the runs the short form keeps, by label
-            keep = v["short"]
-            if not isinstance(keep, list) or not keep or any(k not in labels for k in keep):
-                raise ValueError(f"'variants.short' must list run labels among {labels}")
-            short_runs = sorted(labels.index(k) for k in set(keep))
-        variants = Variants(name_, runs, short_runs)
+        variants = _variants(_mapping(data["variants"], "variants"), data)
     scenario = Scenario(
         name=name,
         path=path,
@@ -391,6 +488,120 @@ def parse(data: Any, name: str, path: Path) -> Scenario:
                     raise
                 raise ValueError(f"robots.{setup.name}: {err}") from None
     return scenario
+
+
+_VARIANT_FORMS = ("key", "runs", "grid")
+
+
+def _variants(v: dict[str, Any], data: dict[str, Any]) -> Variants:
+    """``variants``: one key over values, a list of runs, or a grid of axes."""
+    forms = [f for f in _VARIANT_FORMS if f in v]
+    if len(forms) > 1:
+        raise ValueError(f"'variants' takes one of key + values, runs or grid, got {forms}")
+    if "boundary" in v and "grid" not in v:
+        raise ValueError("'variants.boundary' needs a grid (it is drawn on the heat maps)")
+    axes: tuple[Axis, ...] = ()
+    index: tuple[tuple[int, ...], ...] = ()
+    boundary = None
+    name_ = str(v.get("name", "variant"))
+    if "grid" in v:  # the product of the axes, row-major
+        axes = _axes(v["grid"])
+        name_ = str(v.get("name", " × ".join(a.name for a in axes)))
+        index = tuple(itertools.product(*(range(len(a.values)) for a in axes)))
+        runs = []
+        for ks in index:
+            picked = [(a, a.values[k]) for a, k in zip(axes, ks, strict=True)]
+            label = ",".join(f"{a.name}={_label(x)}" for a, x in picked)
+            runs.append((label, {k: x for a, x in picked for k in a.keys}))
+        if v.get("boundary") is not None:
+            boundary = str(v["boundary"])
+            boundaries.validate(boundary, axes, data)
+    elif "key" in v:  # one key, several values
+        key = _settings_key(str(v["key"]), "variants.key")
+        values = v.get("values")
+        if not isinstance(values, list) or not values:
+            raise ValueError("'variants.values' must be a non-empty list")
+        runs = [(f"{name_}={_label(x)}", {key: x}) for x in values]
+    else:  # several settings per run
+        raw_runs = v.get("runs")
+        if not isinstance(raw_runs, list) or not raw_runs:
+            raise ValueError("'variants' needs key + values, or runs")
+        runs = []
+        for k, run in enumerate(raw_runs):
+            run = _mapping(run, f"variants.runs[{k}]")
+            settings = _mapping(run.get("set"), f"variants.runs[{k}].set")
+            for key, value in settings.items():
+                _settings_key(key, f"variants.runs[{k}].set", value)
+            runs.append((str(run.get("label", k)), settings))
+    labels = [label for label, _ in runs]
+    if len(set(labels)) != len(labels):
+        raise ValueError(f"variant labels must differ: {labels}")
+    short_runs = sorted({0, len(runs) - 1})
+    if axes:  # the corners
+        ends = [sorted({0, len(a.values) - 1}) for a in axes]
+        short_runs = [index.index(c) for c in itertools.product(*ends)]
+    if v.get("short") is not None:  # the runs the short form keeps, by label
+        keep = v["short"]
+        if not isinstance(keep, list) or not keep or any(k not in labels for k in keep):
+            raise ValueError(f"'variants.short' must list run labels among {labels}")
+        short_runs = sorted(labels.index(k) for k in set(keep))
+    return Variants(name_, runs, short_runs, axes, index, boundary)
+
+
+_AXIS_KEYS = {"key", "values", "name", "label", "unit", "scale", "also"}
+
+
+def _axes(raw: Any) -> tuple[Axis, ...]:
+    """The axes of ``variants.grid``, checked: two or more, each with its own keys."""
+    if not isinstance(raw, list) or len(raw) < 2:
+        raise ValueError(
+            "'variants.grid' must list two or more axes ({key: ..., values: [...]}); "
+            "one axis: use variants.key + values"
+        )
+    axes: list[Axis] = []
+    seen: set[str] = set()
+    for k, spec in enumerate(raw):
+        what = f"variants.grid[{k}]"
+        spec = _mapping(spec, what)
+        if extra := set(spec) - _AXIS_KEYS:
+            raise ValueError(
+                f"{what}: unknown keys {sorted(extra)}; allowed: {sorted(_AXIS_KEYS)}"
+            )
+        if "key" not in spec:
+            raise ValueError(f"{what}: missing 'key'")
+        values = spec.get("values")
+        if not isinstance(values, list) or not values:
+            raise ValueError(f"{what}.values must be a non-empty list")
+        also = spec.get("also") or []
+        if not isinstance(also, list):
+            raise ValueError(f"{what}.also must be a list of keys, got {also!r}")
+        keys = [str(spec["key"]), *(str(a) for a in also)]
+        for key in keys:
+            for value in values if key == "controller" else [None]:
+                _settings_key(key, what, value)
+            if key in seen:
+                raise ValueError(f"{what}: key {key!r} is swept by another axis already")
+            seen.add(key)
+        scale = spec.get("scale", "linear")
+        if scale not in SCALES:
+            raise ValueError(f"{what}.scale must be one of {SCALES}, got {scale!r}")
+        if scale == "log" and not all(_number(x) and x > 0 for x in values):
+            raise ValueError(f"{what}: a log axis needs numbers > 0, got {values}")
+        name_ = str(spec.get("name", keys[0].rpartition(".")[2]))
+        if name_ in {a.name for a in axes}:
+            raise ValueError(f"{what}: axis name {name_!r} is used twice (name the axes)")
+        axes.append(
+            Axis(
+                keys[0],
+                name_,
+                str(spec.get("label", name_)),
+                str(spec.get("unit", "")),
+                scale,
+                tuple(values),
+                tuple(keys[1:]),
+            )
+        )
+    return tuple(axes)
 
 
 def _robots(data: dict[str, Any]) -> tuple[RobotSetup, ...]:

@@ -53,13 +53,3 @@ def fmt(x: float | None) -> str:
 
 def model(robot: str, **pert: Any) -> RobotModel:
     return RobotModel(resolve_robot(robot), perturbation=ModelPerturbation(**pert))
-
-
-def gravity_jacobian(m: RobotModel, q: np.ndarray) -> np.ndarray:
-    """∂g/∂q at q [N·m/rad] (Pinocchio's analytic derivative)."""
-    import pinocchio as pin
-
-    return np.asarray(
-        pin.computeGeneralizedGravityDerivatives(m.model, m.data, m.configuration(q)),
-        dtype=float,
-    )

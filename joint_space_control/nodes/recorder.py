@@ -8,6 +8,11 @@ as ``ros2 bag record`` does: best effort if any publisher is best effort, transi
 (latched topics such as ``~/config``) if all publishers are; it is re-created once if a
 publisher with other QoS turns up later.
 
+``~/flush`` (std_srvs/Trigger) writes what the recorder holds to the file and answers the
+messages recorded per topic (a JSON object ``{topic: count}`` in ``message``): a caller that
+knows how many messages were published learns when the recorder has them all (the
+experiment runner does, before it stops a lockstep loop's nodes).
+
 Each message is stamped with its receive time in the node clock: the simulation time with
 ``use_sim_time:=true``, else the system time. Ctrl-C and SIGTERM close the bag cleanly (the
 MCAP summary and ``metadata.yaml`` are written). What was recorded reaches the file every
@@ -25,6 +30,7 @@ messages per second, less than a lockstep loop produces.
 from __future__ import annotations
 
 import importlib
+import json
 import signal
 import sys
 import threading
@@ -40,6 +46,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
 from rosbags.interfaces import QosTime as BagQosTime
+from std_srvs.srv import Trigger
 
 from joint_space_control.recording.bag_writer import (
     FLUSH_PERIOD,
@@ -174,6 +181,7 @@ class Recorder(Node):
             self.create_timer(period, self._discover, clock=self._wall)
             if flush_period > 0:  # an idle recorder still flushes what it holds
                 self.create_timer(flush_period, self._flush, clock=self._wall)
+            self.create_service(Trigger, "~/flush", self._on_flush)
         except BaseException:
             self.bag.close()
             raise
@@ -186,6 +194,17 @@ class Recorder(Node):
             self.bag.flush()
         except BagWriteError as err:
             self.write_failed(err)
+
+    def _on_flush(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """``~/flush``: what is held goes to the file; the answer counts what was recorded."""
+        self._flush()
+        response.success = self.bag.error is None
+        response.message = (
+            json.dumps({t.name: t.count for t in self.bag.topics.values()})
+            if response.success
+            else str(self.bag.error)
+        )
+        return response
 
     def write_failed(self, err: BagWriteError) -> None:
         """A write error of the storage (disk full): one error line, recording stops (the

@@ -127,3 +127,22 @@ def test_sigterm_mid_run_leaves_a_complete_readable_bag(make_loop, tmp_path):
         assert stamps[0] < 0.01
         assert stamps[-1] >= t_stop - 0.05
         np.testing.assert_allclose(np.diff(stamps), 1e-3, atol=1e-9)
+
+
+def test_recorder_flush_answers_what_the_bag_holds(make_loop, tmp_path):
+    """``~/flush`` counts what is written: once the runner's wait for the run's tail ends,
+    the bag has every state the probe saw and every answer to them, as the counts said."""
+    bag = tmp_path / "bag"
+    loop = make_loop(ROBOT, record=bag, sim_params={"pause_at": 0.8})
+    loop.start(JOINTS[ROBOT], [SETPOINTS[ROBOT]])
+    loop.hold_at(0.8)
+    loop.settle_recording()
+    counts = loop.recorded_counts()
+    seen = len(loop.probe.recording.stamps)
+    loop.close()
+
+    in_bag = {name: len(messages) for name, messages in read_with_rosbags(bag).items()}
+    assert counts["/joint_states"] == seen == 801
+    for name in ["/joint_states", "/effort_command", "/clock", STATE_TOPIC]:
+        assert in_bag[name] == counts[name], name
+    assert in_bag["/effort_command"] >= seen

@@ -101,8 +101,8 @@ def test_predicted_chatter_matches_the_analytic_variance_of_the_noise_through_th
     K_D n_v, A = ∂g/∂q − K_P, so Var Δδτ_i = 2 (Σ_j A_ij² σ_q² + K_D,i² σ_v²); with a backward
     difference (D = K_D/T) Δδτ_k = (A − D) n_k + (2D − A) n_{k−1} − D n_{k−2}. The simulated
     prediction (20000 samples) within 3 %."""
+    from joint_space_control.experiments.boundaries import gravity_jacobian
     from joint_space_control.experiments.practice import predicted_chatter
-    from joint_space_control.experiments.views import gravity_jacobian
 
     sigma_q, sigma_v, period = 1e-4, 0.02, 1e-3
     kd = np.array([900.0, 300.0])
