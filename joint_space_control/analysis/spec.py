@@ -246,22 +246,24 @@ class Judgement:
 
     def describe(self, k: int) -> str:
         c, m = self.spec.clauses[k], self.values[k]
-        unit = f" {c.unit}" if c.unit else ""
         where = f" ({m.joint})" if m.joint else ""
         note = f" ({m.note})" if m.note else ""
         verdict = "met" if c.met(m.value) else "NOT met"
-        return f"{c.metric} {fmt_value(m.value)}{unit}{where} {c.op} {c.bound:g}: {verdict}{note}"
+        value = fmt_value(m.value, c.unit)
+        return f"{c.metric} {value}{where} {c.op} {c.bound:g}: {verdict}{note}"
 
     def text(self) -> str:
         return "; ".join(self.describe(k) for k in range(len(self.violations)))
 
 
-def fmt_value(x: float) -> str:
+def fmt_value(x: float, unit: str = "") -> str:
+    """A measured value with its unit: "n/a" when not measured, "never" for a time that
+    did not come within the run."""
     if math.isnan(x):
         return "n/a"
     if math.isinf(x):
         return "never" if x > 0 else "-inf"
-    return f"{x:.4g}"
+    return f"{x:.4g} {unit}" if unit else f"{x:.4g}"
 
 
 def judge(spec: Spec, controller: Mapping[str, Any]) -> Judgement:

@@ -72,6 +72,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=DEFAULT_DURATION,
         help=f"simulated time per trial [s] ({DEFAULT_DURATION})",
     )
+    p.add_argument(
+        "--q0",
+        default=None,
+        help="start, comma-separated per joint [rad] (default: 0, moved 10 %% of a joint's "
+        "range inside its limits)",
+    )
     p.add_argument("--seed", type=int, default=0, help="sampler seed (0)")
     p.add_argument("--study", default=None, help="study name (<robot>_<controller>)")
     p.add_argument(
@@ -129,10 +135,18 @@ def _handle(args: argparse.Namespace) -> int:
             zeta=parse_range(args.zeta, "--zeta", positive=False),
             package_paths=tuple(args.package_path),
             xacro_args=args.xacro_args,
+            q0=None if args.q0 is None else _numbers(args.q0, "--q0"),
         )
     except ValueError as err:
         return _fail(err)
     return run(options)
+
+
+def _numbers(text: str, what: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(x) for x in text.replace(" ", "").split(","))
+    except ValueError:
+        raise ValueError(f"{what} must be numbers separated by commas, got {text!r}") from None
 
 
 def _fail(err: BaseException) -> int:

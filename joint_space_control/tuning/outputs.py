@@ -72,9 +72,8 @@ def _clause_rows(problem: TuneProblem, row: TrialRow) -> list[str]:
     for k, clause in enumerate(problem.spec.clauses):
         value = row.values[k] if row.values else math.nan
         joint = (row.joints[k] if row.joints else None) or "–"
-        unit = f" {clause.unit}" if clause.unit else ""
         out.append(
-            f"| `{clause}` | {joint} | {fmt_value(value)}{unit} | "
+            f"| `{clause}` | {joint} | {fmt_value(value, clause.unit)} | "
             f"{'yes' if clause.met(value) else '**no**'} |"
         )
     return out

@@ -43,19 +43,33 @@ MAX_STEP_FRACTION = 0.25
 
 
 def step_inside_limits(
-    lower: np.ndarray, upper: np.ndarray, step: float = DEFAULT_STEP
+    lower: np.ndarray,
+    upper: np.ndarray,
+    step: float = DEFAULT_STEP,
+    start: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(q0, target) of the step response: q0 = 0 where that lies at least 10 % of the range
-    inside the limits (else the nearest such point), target = q0 + Δ with Δ = ``step``
-    (at most a quarter of the range: a gripper finger), downwards where upwards would leave
-    that inner range. Unbounded (continuous) joints: q0 = 0, target = ``step``."""
+    """(q0, target) of the step response. q0 = ``start``, or 0 where that lies at least
+    10 % of the range inside the limits (else the nearest such point); target = q0 + Δ with
+    Δ = ``step`` (at most a quarter of the range: a gripper finger), downwards where upwards
+    would leave that inner range. Unbounded (continuous) joints: 0 and ``step``. ValueError
+    for a step ≤ 0 or a start outside the limits."""
     lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
     if not step > 0 or not np.isfinite(step):
         raise ValueError(f"the step must be a number > 0 [rad], got {step!r}")
     span = np.where(np.isfinite(upper - lower), upper - lower, 2 * np.pi)
     lo_in = np.where(np.isfinite(lower), lower + LIMIT_MARGIN * span, -np.inf)
     hi_in = np.where(np.isfinite(upper), upper - LIMIT_MARGIN * span, np.inf)
-    q0 = np.clip(0.0, lo_in, hi_in)
+    if start is None:
+        q0 = np.clip(0.0, lo_in, hi_in)
+    else:
+        q0 = np.asarray(start, dtype=float).reshape(-1)
+        if q0.size != lower.size or not np.all(np.isfinite(q0)):
+            raise ValueError(f"the start needs {lower.size} finite values, got {q0.tolist()}")
+        if np.any(q0 < lower) or np.any(q0 > upper):
+            raise ValueError(
+                f"the start {q0.tolist()} is outside the joint limits "
+                f"{lower.tolist()} .. {upper.tolist()}"
+            )
     delta = np.minimum(step, MAX_STEP_FRACTION * span)
     delta = np.where(q0 + delta <= hi_in, delta, -delta)
     return q0, q0 + delta

@@ -59,6 +59,8 @@ class TuneOptions:
     zeta: tuple[float, float] = ZETA_RANGE
     package_paths: tuple[str, ...] = ()
     xacro_args: str = ""
+    q0: tuple[float, ...] | None = None
+    """The start [rad] (None: 0 inside the limits)."""
 
 
 @dataclass
@@ -122,7 +124,11 @@ def prepare(options: TuneOptions) -> Prepared:
             f"({', '.join(builtin_robots())}) or a .urdf/.xacro file"
         )
     model = RobotModel(robot_spec)
-    q0, target = step_inside_limits(*model.position_limits, options.step)
+    q0, target = step_inside_limits(
+        *model.position_limits,
+        options.step,
+        None if options.q0 is None else np.array(options.q0, dtype=float),
+    )
     inertia: tuple[float, ...] = ()
     if options.gains == "kp_kd" and controller == "pd_gravity_controller":
         inertia = tuple(float(b) for b in np.diag(model.inertia(q0)))
@@ -137,7 +143,7 @@ def prepare(options: TuneOptions) -> Prepared:
         target,
         float(options.duration),
         spec,
-        options.law,
+        options.law or laws[0],  # written out: the file says which law the gains are for
         robot_parameters,
     )
     name = f"{robot}_{options.controller}"
@@ -147,7 +153,7 @@ def prepare(options: TuneOptions) -> Prepared:
         "robot": robot,
         "robot_parameters": robot_parameters,
         "controller": controller,
-        "law": options.law,
+        "law": options.law or laws[0],
         "spec": str(spec),
         "gains": options.gains,
         "omega_n": list(options.omega_n),
@@ -232,11 +238,10 @@ def closest_clause(problem: TuneProblem, best: outputs.TrialRow) -> str:
     if not failing:
         return ""
     _, k, clause, value = min(failing, key=lambda x: x[0])
-    unit = f" {clause.unit}" if clause.unit else ""
     joint = (best.joints or [None] * len(values))[k]
     where = f" on {joint}" if joint else ""
     return (
-        f"{clause} (trial {best.number}: {fmt_value(value)}{unit}{where}, "
+        f"{clause} (trial {best.number}: {fmt_value(value, clause.unit)}{where}, "
         f"{100 * abs(clause.violation(value)):.0f} % of the bound away)"
     )
 
@@ -333,8 +338,8 @@ def _best_step(prepared: Prepared, best: outputs.TrialRow, run_dir: Path) -> Pat
         entry = steps[0]["joints"][j] if steps else {}
         notes.append(
             f"ω_n = {best.omega_n[k]:.3g} rad/s, ζ = {best.zeta[k]:.3g}: overshoot "
-            f"{fmt_value(_num(entry.get('overshoot_percent')))} %, 2 % settling "
-            f"{fmt_value(_num(entry.get('settling_time_2'), math.inf))} s"
+            f"{fmt_value(_num(entry.get('overshoot_percent')), '%')}, 2 % settling "
+            f"{fmt_value(_num(entry.get('settling_time_2'), math.inf), 's')}"
         )
     return figures.step_figure(
         state.stamp,

@@ -212,8 +212,8 @@ def _tell(
     study.tell(trial, objective(judgement))
     verdict = "meets the spec" if judgement.met else "misses the spec"
     log(
-        f"trial {trial.number}: {gains}: {verdict} (worst violation "
-        f"{judgement.worst:+.3f}); {_values_text(problem, judgement)}"
+        f"trial {trial.number}: {gains}: {verdict} (objective {objective(judgement):+.3g}); "
+        f"{_values_text(problem, judgement)}"
     )
 
 
@@ -230,8 +230,7 @@ def _gains_text(trial: optuna.Trial | FrozenTrial) -> str:
 
 
 def _values_text(problem: TuneProblem, judgement) -> str:
-    parts = []
-    for clause, m in zip(problem.spec.clauses, judgement.values, strict=True):
-        unit = f" {clause.unit}" if clause.unit else ""
-        parts.append(f"{clause.metric} {fmt_value(m.value)}{unit}")
-    return ", ".join(parts)
+    return ", ".join(
+        f"{clause.metric} {fmt_value(m.value, clause.unit)}"
+        for clause, m in zip(problem.spec.clauses, judgement.values, strict=True)
+    )
