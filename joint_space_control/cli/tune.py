@@ -105,6 +105,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="folder for package:// URIs of the description (repeatable)",
     )
     p.add_argument("--xacro-args", default="", help="'name:=value ...' for a .xacro file")
+    p.add_argument(
+        "--no-design",
+        action="store_true",
+        help="start a new study from TPE's random trials, not from the second-order "
+        "theory's design for the spec (the default first trial)",
+    )
     p.set_defaults(handler=_handle)
 
 
@@ -136,6 +142,7 @@ def _handle(args: argparse.Namespace) -> int:
             package_paths=tuple(args.package_path),
             xacro_args=args.xacro_args,
             q0=None if args.q0 is None else _numbers(args.q0, "--q0"),
+            design=not args.no_design,
         )
     except ValueError as err:
         return _fail(err)

@@ -39,6 +39,7 @@ class TrialRow:
     seconds: float | None = None
     error: str | None = None
     params: dict[str, float] | None = None
+    origin: str | None = None  # "theory's design" for the first trial, else TPE's
 
 
 def _header(lines: Sequence[str]) -> str:
@@ -142,6 +143,8 @@ def report_markdown(
         ]
         objective = "–" if r.objective is None else f"{r.objective:+.3g}"
         state = r.state if r.error is None else f"{r.state}: {r.error[:80]}"
+        if r.origin:
+            state += f" ({r.origin})"
         seconds = "–" if r.seconds is None else f"{r.seconds:.0f}"
         lines.append(
             f"| {r.number} | {state} | {objective} | {_vector(r.omega_n, 3)} | "

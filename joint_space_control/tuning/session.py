@@ -20,6 +20,7 @@ from joint_space_control.analysis.spec import fmt_value, parse_spec
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import builtin_robots, resolve_robot
 from joint_space_control.tuning import figures, outputs
+from joint_space_control.tuning.design import theory_design
 from joint_space_control.tuning.problem import (
     CONTROLLERS,
     DEFAULT_DURATION,
@@ -61,6 +62,8 @@ class TuneOptions:
     xacro_args: str = ""
     q0: tuple[float, ...] | None = None
     """The start [rad] (None: 0 inside the limits)."""
+    design: bool = True
+    """A new study's first trial is the theory's design for the spec (tuning/design.py)."""
 
 
 @dataclass
@@ -75,6 +78,8 @@ class Prepared:
     storage: str
     settings: dict[str, Any]
     warnings: list[str] = field(default_factory=list)
+    design: dict[str, float] | None = None
+    """The theory's point for the spec (the first trial of a new study), or None."""
 
 
 def _is_file(robot: str) -> bool:
@@ -162,6 +167,16 @@ def prepare(options: TuneOptions) -> Prepared:
         "target": target.tolist(),
         "duration": float(options.duration),
     }
+    design = None
+    if options.design:
+        design = theory_design(
+            spec,
+            space,
+            np.diag(model.inertia(q0)),
+            model.gravity(q0),
+            model.effort_limits,
+            target - q0,
+        )
     return Prepared(
         options,
         problem,
@@ -171,6 +186,7 @@ def prepare(options: TuneOptions) -> Prepared:
         f"sqlite:///{(out / 'study.db').resolve()}",
         settings,
         list(robot_spec.warnings) + list(model.warnings),
+        design,
     )
 
 
@@ -184,6 +200,15 @@ def run(
     o = prepared.options
     study = open_study(prepared.storage, prepared.study_name, o.seed, o.trials, prepared.settings)
     stale = fail_stale(study)
+    if not study.trials and prepared.design is not None:
+        study.enqueue_trial(prepared.design, user_attrs={"origin": "theory's design"})
+        omega, zeta = prepared.space.second_order(prepared.design)
+        log(
+            "trial 0 is the theory's design for the spec: ω_n = "
+            + ", ".join(f"{w:.3g}" for w in omega)
+            + " rad/s, ζ = "
+            + ", ".join(f"{z:.3g}" for z in zeta)
+        )
     done = sum(is_finished(t) for t in study.trials)
     if stale:
         log(f"{stale} trial(s) left running by an earlier session marked failed (interrupted)")
@@ -216,6 +241,7 @@ def row(t: FrozenTrial) -> outputs.TrialRow:
         a.get("seconds"),
         a.get("error"),
         dict(t.params),
+        a.get("origin"),
     )
 
 
@@ -279,8 +305,8 @@ def write_outputs(prepared: Prepared, study: optuna.Study, pool: str, elapsed: f
         scenario = outputs.scenario_yaml(problem, gains, header)
         files.append(outputs.write_text(out / "scenario.yaml", scenario))
     title = (
-        f"{problem.robot}, {problem.controller}: {problem.spec} "
-        f"({sum(r.state == 'met' for r in rows)} of {len(rows)} trials meet it)"
+        f"{problem.robot}, {problem.controller}\n{problem.spec}: "
+        f"{sum(r.state == 'met' for r in rows)} of {len(rows)} trials meet it"
     )
     points = [
         figures.HistoryPoint(r.number, r.objective, r.state == "met")

@@ -64,8 +64,9 @@ def test_the_step_starts_at_zero_inside_the_limits_and_stays_inside():
     assert q0[2] == pytest.approx(0.47) and target[2] == pytest.approx(0.67)
     assert q0[3] == 0.0 and target[3] == pytest.approx(0.2)  # continuous joint
     assert target[4] - q0[4] == pytest.approx(0.01)  # a quarter of a 0.04 range
-    inner_lo = np.where(np.isfinite(lo), lo + 0.1 * (hi - lo), -np.inf)
-    inner_hi = np.where(np.isfinite(hi), hi - 0.1 * (hi - lo), np.inf)
+    with np.errstate(invalid="ignore"):  # inf − inf of the continuous joint, not used
+        inner_lo = np.where(np.isfinite(lo), lo + 0.1 * (hi - lo), -np.inf)
+        inner_hi = np.where(np.isfinite(hi), hi - 0.1 * (hi - lo), np.inf)
     assert np.all((target >= inner_lo - 1e-12) & (target <= inner_hi + 1e-12))
     with pytest.raises(ValueError, match="step"):
         step_inside_limits(lo, hi, 0.0)
@@ -411,3 +412,62 @@ def test_ranges_of_the_help_are_the_defaults():
     o = TuneOptions("planar_2dof", "pd_gravity", SPEC)
     assert o.omega_n[0] < 10 < o.omega_n[1] and o.zeta[0] < 1 < o.zeta[1]
     assert math.isclose(o.step, 0.2) and o.duration == 2.0
+
+
+# --------------------------------------------------------------------------- the design
+
+
+def test_zeta_for_overshoot_inverts_the_second_order_overshoot():
+    from joint_space_control.analysis.metrics import second_order_prediction
+    from joint_space_control.tuning.design import zeta_for_overshoot
+
+    for percent in (0.5, 5.0, 16.3, 40.0):
+        zeta = zeta_for_overshoot(percent)
+        overshoot = second_order_prediction(10.0, zeta)["overshoot_percent"][0]
+        assert overshoot == pytest.approx(percent, rel=1e-9)
+    assert zeta_for_overshoot(0.0) == 1.0
+
+
+def test_the_theory_design_meets_the_spec_on_the_second_order_loop():
+    from joint_space_control.analysis.spec import judge
+    from joint_space_control.tuning.design import theory_design
+
+    spec = parse_spec("overshoot<=5, settling_2pct<=0.6, rise_time<=0.5")
+    space = SearchSpace(JOINTS)
+    point = theory_design(spec, space, [135.0, 22.5], [0.0, 0.0], [2000.0, 1000.0], [0.2, 0.2])
+    omega, zeta = space.second_order(point)
+    assert np.all(zeta >= 0.8) and np.all(omega > 3.76 / 0.6)  # ω_n t_s(ζ = 0.8) ≈ 3.76
+    assert judge(spec, controller_metrics(omega, zeta)).met
+
+
+def test_the_theory_design_keeps_the_step_command_under_the_torque_bound():
+    from joint_space_control.tuning.design import TORQUE_MARGIN, theory_design
+
+    spec = parse_spec("overshoot<=5, peak_torque_ratio<=0.5")
+    b, g, lim, dq = np.array([145.0, 22.5]), np.array([300.0, 100.0]), [2000.0, 1000.0], 0.2
+    omega, _ = SearchSpace(JOINTS).second_order(
+        theory_design(spec, SearchSpace(JOINTS), b, g, lim, [dq, dq])
+    )
+    command = g + b * omega**2 * dq
+    assert np.all(command <= TORQUE_MARGIN * 0.5 * np.array(lim) + 1e-9)
+    # a settling bound the torque bound forbids: a compromise between the two, inside the box
+    spec = parse_spec("settling_2pct<=0.1, peak_torque_ratio<=0.5")
+    omega, _ = SearchSpace(JOINTS).second_order(
+        theory_design(spec, SearchSpace(JOINTS), b, g, lim, [dq, dq])
+    )
+    assert np.all(b * omega**2 * dq + g > 0.45 * np.array(lim)) and np.all(omega <= 50.0)
+
+
+def test_a_new_study_starts_from_the_design_and_a_resumed_one_does_not(tmp_path):
+    logs: list[str] = []
+    tune_cli.run(options(tmp_path, trials=3), ThreadPool, theory_run, log=logs.append)
+    assert any(m.startswith("trial 0 is the theory's design") for m in logs)
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "| 0 | met (theory's design) |" in report
+    logs.clear()
+    tune_cli.run(options(tmp_path, trials=4), ThreadPool, theory_run, log=logs.append)
+    assert not any("theory's design" in m for m in logs)
+    logs.clear()
+    no_design = options(tmp_path, trials=2, design=False, study="other")
+    tune_cli.run(no_design, ThreadPool, theory_run, log=logs.append)
+    assert not any("theory's design" in m for m in logs)
