@@ -3,9 +3,11 @@
 Sections (all by default): ``compute`` (laws and Pinocchio calls per tick, no ROS),
 ``in_process`` (plant + law in one process, no ROS), ``pingpong`` (plain rclpy), ``lockstep``
 (sim_bridge + controller over ROS 2), ``realtime`` (1 kHz on the wall clock, with the
-machine's floor: a bare Python thread paced the same way) and ``analyze`` (``jsc analyze``
-per million messages). Ping-pong and lockstep alternate in ``rounds`` (each row is the
-median round, ``rounds`` keeps them all). ``ratios`` and ``goals`` are derived; the CPU time
+machine's floor: a bare Python thread paced the same way), ``analyze`` (``jsc analyze``
+per million messages) and ``sweep`` (runs per minute of a fixed sweep on a Dask LocalCluster
+of 1 and then 2 workers, and where a run's wall time goes; skipped by ``--quick``).
+Ping-pong and lockstep alternate in ``rounds`` (each row is the median round, ``rounds``
+keeps them all). ``ratios`` and ``goals`` are derived; the CPU time
 the hypervisor took during each part (``cpu_steal_fraction``) says how much the machine
 itself was disturbed.
 """
@@ -27,7 +29,7 @@ from joint_space_control.bench import compute
 from joint_space_control.bench.load import cpu_hog
 from joint_space_control.json_values import jsonable
 
-SECTIONS = ("compute", "in_process", "pingpong", "lockstep", "realtime", "analyze")
+SECTIONS = ("compute", "in_process", "pingpong", "lockstep", "realtime", "analyze", "sweep")
 #: The realtime runs (and their floors): quiet and with a CPU hog on every core
 #: (bench.load), each at normal scheduling and at the nodes' default thread_priority.
 REALTIME_PRIORITIES = (0, 50)
@@ -55,6 +57,9 @@ class Options:
     floor_seconds: float = 10.0  # 1 kHz pacing without ROS
     realtime_robot: str = "iiwa"
     realtime_law: str = "inverse_dynamics"
+    sweep_runs: int = 6  # runs of the sweep (0: the section is skipped)
+    sweep_seconds: float = 1.0  # simulated time of each
+    sweep_workers: tuple[int, ...] = (1, 2)  # LocalCluster sizes, in this order
 
     @classmethod
     def quick(cls) -> Options:
@@ -67,6 +72,7 @@ class Options:
             realtime_seconds=1.0,
             analyze_seconds=0.5,
             floor_seconds=1.0,
+            sweep_runs=0,  # minutes, not seconds: `jsc bench --sections sweep` measures it
         )
 
 
@@ -196,6 +202,22 @@ def run(
             "analyze",
             lambda: ros.analyze_time(out / "runs" / "analyze", options.analyze_seconds, log),
         )
+    if "sweep" in sections:
+        if options.sweep_runs > 0:
+            from joint_space_control.bench import sweep  # Dask only for this section
+
+            result["sweep"] = measured(
+                "sweep",
+                lambda: sweep.throughput(
+                    out / "runs" / "sweep",
+                    options.sweep_runs,
+                    options.sweep_seconds,
+                    options.sweep_workers,
+                    log,
+                ),
+            )
+        else:
+            result["sweep"] = {"skipped": "--quick: run `jsc bench --sections sweep`"}
     result["ratios"] = ratios(result)
     result["goals"] = goals(result)
     result["duration_s"] = time.monotonic() - started
@@ -437,6 +459,10 @@ def format_table(result: dict[str, Any]) -> str:
             f"{an['seconds_per_million_messages']:.1f} s per million messages",
             "",
         ]
+    if "sweep" in result:
+        from joint_space_control.bench.sweep import format_sweep
+
+        lines += format_sweep(result["sweep"])
     steal = {k: v for k, v in result.get("cpu_steal_fraction", {}).items() if v is not None}
     if steal:
         lines += [

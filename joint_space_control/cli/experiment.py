@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -24,7 +26,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--short", action="store_true", help="CI form: short durations, first and last variant"
     )
-    p.add_argument("--jobs", type=int, default=2, help="variants run in parallel")
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=2,
+        help="runs at a time: the LocalCluster's workers, or the threads (default 2; "
+        "ignored with a scheduler address, whose cluster has its own workers)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS|threads",
+        help="where the runs execute: a Dask LocalCluster of --jobs workers (default), an "
+        "existing Dask scheduler tcp://HOST:PORT (--out must then be a directory every "
+        "worker reaches at the same path), or 'threads' (threads of this process, no Dask)",
+    )
     p.add_argument(
         "--report", type=Path, default=None, help="also write DIR/results.md (e.g. docs/)"
     )
@@ -42,7 +58,14 @@ def _handle(args: argparse.Namespace) -> int:
     if args.list:
         return list_scenarios()
     return run(
-        args.names, args.all, args.out, args.short, args.jobs, args.report, args.params_file
+        args.names,
+        args.all,
+        args.out,
+        args.short,
+        args.jobs,
+        args.report,
+        args.scheduler,
+        args.params_file,
     )
 
 
@@ -69,34 +92,62 @@ def run(
     short: bool,
     jobs: int,
     report: Path | None,
+    scheduler: str | None = None,
     params_file: Path | None = None,
 ) -> int:
-    # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
+    """Run the scenarios, all on one pool (:class:`RunPool`: ``scheduler`` None, a
+    LocalCluster of ``jobs`` workers; an address; or ``"threads"``). Ctrl-C cancels the
+    whole sweep (no node or worker process is left) and exits with 130."""
+    # deferred: the library (ROS, Pinocchio, Dask) loads only for this command, not for
+    # `jsc --help`
+    from joint_space_control.experiments.distributed import RunPool
     from joint_space_control.experiments.experiment import (
         ExperimentResult,
         results_page,
         run_experiment,
     )
-    from joint_space_control.experiments.runner import stop_all_runs
+
+    def error(message: str) -> int:
+        print(f"jsc experiment: error: {message}", file=sys.stderr)
+        return 2
 
     if run_all:
         names = list(scenarios.available())
     if not names:
-        print("jsc experiment: error: name a scenario, or use --all / --list", file=sys.stderr)
-        return 2
+        return error("name a scenario, or use --all / --list")
+    if jobs < 1:
+        return error(f"--jobs must be >= 1, got {jobs}")
     try:
         loaded = [scenarios.load(n) for n in names]
         if params_file is not None:
             loaded = [with_params_file(s, params_file) for s in loaded]
     except ValueError as err:
-        print(f"jsc experiment: error: {err}", file=sys.stderr)
-        return 2
+        return error(str(err))
+    out = out.absolute()  # the path the workers are given
+
+    def log(message: str) -> None:
+        print(message, flush=True)
+
+    try:
+        pool = RunPool(jobs, scheduler, log)
+    except ValueError as err:
+        return error(str(err))
+    except KeyboardInterrupt:
+        print("\njsc experiment: interrupted", file=sys.stderr)
+        return 130
     results: list[ExperimentResult] = []
     started = time.monotonic()
     try:
+        print(f"runs on: {pool.description}", flush=True)
+        out.mkdir(parents=True, exist_ok=True)
+        if missing := pool.missing(out):
+            return error(
+                f"--out {out} is not a directory on the workers {', '.join(missing)}: give "
+                "one on a file system every worker mounts at the same path"
+            )
         for k, scenario in enumerate(loaded):
             print(f"{_bar(k, len(loaded))} {scenario.name}: {scenario.title}", flush=True)
-            result = run_experiment(scenario, out, short, jobs, lambda m: print(m, flush=True))
+            result = run_experiment(scenario, out, short, pool, log)
             results.append(result)
             verdict = {True: "agrees with the theory", False: "FAILED", None: "ran"}[result.passed]
             print(f"  -> {verdict}: {result.out / 'summary.md'}", flush=True)
@@ -107,9 +158,18 @@ def run(
             for e in result.errors:
                 print(f"     run failed: {e}")
     except KeyboardInterrupt:
-        print("\njsc experiment: interrupted, stopping the nodes", file=sys.stderr)
-        stop_all_runs()
+        # a second Ctrl-C must not cut the stopping short (nodes and workers would be left)
+        previous = _ignore_sigint()
+        print("\njsc experiment: interrupted, stopping the runs", file=sys.stderr, flush=True)
+        try:
+            pool.cancel()
+            pool.close()
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
         return 130
+    finally:
+        pool.close()
     print(f"{_bar(len(loaded), len(loaded))} done in {time.monotonic() - started:.0f} s")
     if report is not None:
         page = results_page(results, report, short)
@@ -122,3 +182,10 @@ def run(
         print(f"jsc experiment: {len(failed)} failed: {', '.join(failed)}", file=sys.stderr)
         return 1
     return 0
+
+
+def _ignore_sigint():
+    """Ignore SIGINT from now on (main thread only); the handler it replaced, or None."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGINT, signal.SIG_IGN)

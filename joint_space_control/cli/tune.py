@@ -4,7 +4,9 @@ whose trials are lockstep runs on a pool of workers (wiring only: tuning/)."""
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -156,19 +158,16 @@ def _numbers(text: str, what: str) -> tuple[float, ...]:
         raise ValueError(f"{what} must be numbers separated by commas, got {text!r}") from None
 
 
+def _ignore_sigint():
+    """Ignore SIGINT from now on (main thread only); the handler it replaced, or None."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _fail(err: BaseException) -> int:
     print(f"{PROG}: error: {str(err).splitlines()[0]}", file=sys.stderr)
     return 2
-
-
-def _default_pool() -> tuple[Callable[..., Any], Callable[..., Any]]:
-    """Dask's RunPool and its task ``execute_run`` (the interim thread pool until they land)."""
-    try:
-        from joint_space_control.experiments.distributed import RunPool
-        from joint_space_control.experiments.runner import execute_run
-    except ImportError:
-        from joint_space_control.tuning._interim import RunPool, execute_run
-    return RunPool, execute_run
 
 
 def run(
@@ -178,7 +177,8 @@ def run(
     log: Callable[[str], None] = lambda m: print(m, flush=True),
 ) -> int:
     """The session: prepare, run the study on the pool, write the outputs; the exit code.
-    ``pool_class``/``task`` replace RunPool/execute_run (tests)."""
+    ``pool_class``/``task`` replace RunPool/execute_run (tests). Ctrl-C fails the trials in
+    flight, cancels the pool (their nodes stopped) and exits 130."""
     from joint_space_control.tuning.session import prepare, write_outputs
     from joint_space_control.tuning.session import run as run_study
     from joint_space_control.tuning.study import SettingsMismatchError
@@ -190,7 +190,10 @@ def run(
     for warning in prepared.warnings:
         log(f"warning: {warning}")
     if pool_class is None or task is None:
-        pool_class, task = _default_pool()
+        from joint_space_control.experiments.distributed import RunPool
+        from joint_space_control.experiments.runner import execute_run
+
+        pool_class, task = RunPool, execute_run
     started = time.monotonic()
     problem = prepared.problem
     log(
@@ -198,28 +201,47 @@ def run(
         f"{prepared.space.describe()}; {options.trials} trials -> {prepared.out}"
     )
     try:
-        with pool_class(jobs=options.jobs, scheduler=options.scheduler, log=log) as pool:
-            log(f"runs on {pool.description}")
-
-            def submit(label: str, scenario: Any, target: Path):
-                return pool.submit(label, task, scenario, target, False)
-
-            try:
-                study = run_study(prepared, submit, pool.workers, log)
-            except KeyboardInterrupt:
-                pool.cancel()
-                print(
-                    f"\n{PROG}: interrupted; the trials in flight are marked failed. The same "
-                    "command resumes the study.",
-                    file=sys.stderr,
-                )
-                return 130
-            description = pool.description
-    except SettingsMismatchError as err:
+        pool = pool_class(options.jobs, options.scheduler, log)
+    except ValueError as err:  # a bad scheduler address, say
         return _fail(err)
     except KeyboardInterrupt:
         print(f"\n{PROG}: interrupted", file=sys.stderr)
         return 130
+    try:
+        log(f"runs on {pool.description}")
+        if missing := pool.missing(prepared.out):
+            return _fail(
+                ValueError(
+                    f"--out {prepared.out} is not a directory on the workers "
+                    f"{', '.join(missing)}: give one every worker mounts at the same path"
+                )
+            )
+
+        def submit(label: str, scenario: Any, target: Path):
+            return pool.submit(label, task, scenario, target, False)
+
+        study = run_study(prepared, submit, pool.workers, log)
+        description = pool.description
+    except SettingsMismatchError as err:
+        return _fail(err)
+    except KeyboardInterrupt:
+        # a second Ctrl-C must not cut the stopping short (nodes and workers would be left)
+        previous = _ignore_sigint()
+        print(
+            f"\n{PROG}: interrupted; the trials in flight are marked failed, stopping the "
+            "runs. The same command resumes the study.",
+            file=sys.stderr,
+            flush=True,
+        )
+        try:
+            pool.cancel()
+        finally:
+            pool.close()
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
+        return 130
+    finally:
+        pool.close()
     summary = write_outputs(prepared, study, description, time.monotonic() - started)
     best = summary.best
     if best is None:

@@ -18,6 +18,11 @@ class DomainLease:
         self.domain_id = domain_id
         self._handle = handle
 
+    def fileno(self) -> int | None:
+        """The descriptor of the lock (None once released): a child process that keeps it
+        open holds the domain after the lease is released, until it exits."""
+        return None if self._handle is None else self._handle.fileno()
+
     def release(self) -> None:
         """Give the domain back (idempotent, also from another thread)."""
         handle, self._handle = self._handle, None

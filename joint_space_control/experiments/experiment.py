@@ -19,6 +19,7 @@ from pathlib import Path
 from joint_space_control.analysis.report import write_metrics
 from joint_space_control.experiments import figures, sweep_figures
 from joint_space_control.experiments.checks import Outcome, RunView, evaluate
+from joint_space_control.experiments.distributed import RunPool
 from joint_space_control.experiments.runner import RunResult, run_scenario
 from joint_space_control.experiments.scenario import Scenario
 from joint_space_control.json_values import jsonable
@@ -52,13 +53,17 @@ def run_experiment(
     scenario: Scenario,
     out: Path,
     short: bool = False,
-    jobs: int = 2,
+    pool: RunPool | None = None,
     log: Callable[[str], None] = print,
 ) -> ExperimentResult:
+    """The scenario's runs (tasks of ``pool``; None: two threads here), its checks, its
+    figures and summary, in ``out/<name>/``. The runs write their bags and reports there
+    and this process draws the figures from them: with workers on other machines, ``out``
+    must be a directory they all reach at the same path."""
     out = out / scenario.name
     if out.exists():
         shutil.rmtree(out)  # the experiment's own directory: a rerun replaces it
-    runs = run_scenario(scenario, out, short, jobs, log)
+    runs = run_scenario(scenario, out, short, pool, log)
     errors = [f"{r.label}: {r.error}" for r in runs if r.error]
     views = [
         RunView(

@@ -30,6 +30,8 @@ from joint_space_control.recording.selection import world_topics
 #: until it has the whole run (at most RECORD_SETTLE_MAX [s]).
 RECORD_POLL = 0.1
 RECORD_SETTLE_MAX = 60.0
+#: The plant's true state beside an imperfect measurement, in a robot's namespace.
+TRUTH_TOPIC = "sim_bridge/true_joint_states"
 #: Topics published by wall-time timers (they grow while the run is paused): not awaited.
 _BACKGROUND_TOPICS = frozenset({"/diagnostics", "/parameter_events", "/rosout"})
 
@@ -79,7 +81,10 @@ class ClosedLoop:
             self._lease = lease_domain()
             domain_id = self._lease.domain_id
         self.domain_id = domain_id
-        self.group = ProcessGroup(workdir, domain_id)
+        # the nodes hold the lease too: a node that outlives this process (killed) keeps
+        # its domain from the next run until it has stopped (processes.py)
+        lease_fd = self._lease.fileno() if self._lease is not None else None
+        self.group = ProcessGroup(workdir, domain_id, () if lease_fd is None else (lease_fd,))
         self.probe: LoopProbe | None = None
         try:
             if record is not None:  # first: it sees every node's parameters and config
@@ -179,21 +184,31 @@ class ClosedLoop:
         lockstep plant runs faster than the recorder writes, and what is still on its way
         when the plant's process ends is lost (seen: the last 160–1260 of 3000 states). The
         plant is paused by then. The recorder's ``~/flush`` answers what it has recorded per
-        topic: the wait ends once it holds every joint state the probe received, of each
-        robot, and its counts of the run's topics have stopped growing (the controllers'
-        answers to the last state come just after it)."""
+        topic: the wait ends once it holds, of each robot, every joint state the probe
+        received and as many commands, controller states and ``/clock`` messages (one of
+        each per state in lockstep; the true states too when the plant publishes them), and
+        its counts of the run's topics have stopped growing. (Under load the recorder takes
+        its topics unevenly: seen, the joint states complete while 300 of 3000 controller
+        states were still on their way.)"""
         if self.bag is None:
             return
-        expected = {
-            _absolute(r.name, "joint_states")[0]: len(self.probe.recordings[r.name].stamps)
-            for r in self.robots
-        }
+        expected: dict[str, int] = {}
+        for r in self.robots:
+            n = len(self.probe.recordings[r.name].stamps)
+            topics = ("joint_states", "effort_command", f"{r.controller}/state")
+            expected.update(dict.fromkeys(_absolute(r.name, *topics), n))
+            expected[_absolute(r.name, TRUTH_TOPIC)[0]] = n  # if published at all
+        expected["/clock"] = max(expected.values())
         deadline = time.monotonic() + timeout
         previous: dict[str, int] | None = None
         while True:
             counts = self.recorded_counts()
             run = {k: v for k, v in counts.items() if k not in _BACKGROUND_TOPICS}
-            complete = all(counts.get(topic, 0) >= n for topic, n in expected.items())
+            complete = all(
+                counts.get(topic, 0) >= n
+                for topic, n in expected.items()
+                if not (topic.endswith(TRUTH_TOPIC) and counts.get(topic, 0) == 0)
+            )
             if complete and run == previous:
                 return
             if time.monotonic() > deadline:

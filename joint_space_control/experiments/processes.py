@@ -3,6 +3,13 @@
 Each node runs as ``python -m <module> --ros-args -r __node:=<name> --params-file <yaml>``
 (and ``-r __ns:=/<namespace>`` for a robot's node in a world of several) in an isolated ROS
 domain (``ROS_DOMAIN_ID``) with localhost-only discovery.
+
+A node never outlives the process that started it: ``JSC_PARENT_PID`` in its environment
+names that process, and the node stops as on SIGTERM once it is gone
+(:func:`~joint_space_control.ros.node_main.watch_parent`), also when it was killed and could
+not stop its nodes (a Dask worker that died mid-run). A node also holds the run's domain
+lease (its lock file stays open in the node), so the domain is handed out again only once
+every node of the run has exited.
 """
 
 from __future__ import annotations
@@ -16,6 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+
+from joint_space_control.ros.node_main import PARENT_PID_ENV
 
 #: Executable name → module with ``main`` (the console scripts of the package).
 EXECUTABLES = {
@@ -51,9 +60,11 @@ class NodeProcess:
         extra_args: list[str] | None = None,
         prefix: Sequence[str] = (),
         namespace: str = "",
+        hold_fds: Sequence[int] = (),
     ) -> None:
         """``prefix``: a command that runs the node (``setpriv …``, ``taskset …``);
-        ``namespace``: the node's (its files then go in ``workdir/<namespace>/``)."""
+        ``namespace``: the node's (its files then go in ``workdir/<namespace>/``);
+        ``hold_fds``: descriptors the node keeps open while it runs (a domain lease)."""
         if executable not in EXECUTABLES:
             raise ValueError(f"unknown executable '{executable}'")
         if namespace:
@@ -78,7 +89,12 @@ class NodeProcess:
             *(extra_args or []),
         ]
         self.proc = subprocess.Popen(
-            cmd, env=dict(env), stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True
+            cmd,
+            env={**env, PARENT_PID_ENV: str(os.getpid())},
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            pass_fds=tuple(hold_fds),
         )
 
     def alive(self) -> bool:
@@ -110,9 +126,12 @@ class NodeProcess:
 class ProcessGroup:
     """Context manager owning node processes; every one is stopped on exit, also on error."""
 
-    def __init__(self, workdir: Path, domain_id: int) -> None:
+    def __init__(self, workdir: Path, domain_id: int, hold_fds: Sequence[int] = ()) -> None:
+        """``hold_fds``: descriptors every node keeps open (the lock of the domain's lease:
+        the domain stays leased until the last node has exited)."""
         self.workdir = Path(workdir)
         self.env = isolated_env(domain_id)
+        self.hold_fds = tuple(hold_fds)
         self.nodes: dict[str, NodeProcess] = {}
 
     def start(
@@ -134,6 +153,7 @@ class ProcessGroup:
             extra_args,
             prefix,
             namespace,
+            self.hold_fds,
         )
         self.nodes[node.name] = node
         return node

@@ -4,7 +4,9 @@ Each run starts ``sim_bridge`` (lockstep, paused), the scenario's controller and
 ``recorder`` as separate processes with ``--ros-args --params-file`` (as a launch file
 would), sends the reference, applies the scheduled changes at exact simulation times, stops
 everything, and analyses the bag into ``<run>/report``. Variants run in parallel, each in
-its own ROS domain.
+its own ROS domain: each run is a task (:func:`execute_run`) of a
+:class:`~joint_space_control.experiments.distributed.RunPool`, in threads of this process or
+on the workers of a Dask cluster, which then write into an ``out`` they all reach.
 
 A scenario of several robots runs them in one world (one ``sim_bridge``, a controller per
 robot in its namespace, one bag) and gives one result per robot, as if each were a run of
@@ -15,10 +17,12 @@ events.
 from __future__ import annotations
 
 import json
-import threading
+import os
+import shutil
+import time
 import traceback
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,7 +30,8 @@ from typing import Any
 from joint_space_control.analysis.bag import BagReader, ControllerState, JointStates, joint_states
 from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
-from joint_space_control.experiments.loop import ClosedLoop
+from joint_space_control.experiments.distributed import RunPool, on_cancel, stop_all
+from joint_space_control.experiments.loop import TRUTH_TOPIC, ClosedLoop
 from joint_space_control.experiments.probe import in_namespace
 from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
 from joint_space_control.model.dynamics import RobotModel
@@ -53,6 +58,10 @@ class RunResult:
     """The plant's true state, recorded when its measurement is imperfect (else None)."""
     figures: dict[str, Path] = field(default_factory=dict)
     """The controller's figures in ``report/`` (name → PNG: ``positions``, ``error``, …)."""
+    timings: dict[str, float] = field(default_factory=dict)
+    """Where the run's wall time went [s]: ``start`` (the node processes up and connected),
+    ``run`` (the simulated run, with its changes), ``stop`` (the recorder's tail, the
+    nodes stopped), ``analysis`` (bag → report and figures)."""
 
     @property
     def node(self) -> str:
@@ -66,60 +75,133 @@ class RunResult:
         return self.metrics["controllers"][self.node]
 
 
-#: The plant's true state beside an imperfect measurement (docs/plant.md), in the robot's
-#: namespace.
-TRUTH_TOPIC = "sim_bridge/true_joint_states"
-
-_active: set[ClosedLoop] = set()
-_active_lock = threading.Lock()
+#: What a run writes into its directory (removed before a retry: a failed attempt's).
+RUN_FILES = ("bag", "report", "logs", "events.json", "error.txt")
+#: How long [s] a retry waits for the failed attempt's nodes to stop and its bag to close.
+PREVIOUS_ATTEMPT_WAIT = 10.0
 
 
 def stop_all_runs() -> None:
-    """Stop every loop still running (Ctrl-C): their node processes are terminated."""
-    with _active_lock:
-        loops = list(_active)
-    for loop in loops:
-        loop.close()
+    """Stop every loop still running in this process (Ctrl-C): their node processes are
+    terminated (the runs then fail and end)."""
+    stop_all()
+
+
+def execute_run(run: Scenario, target: Path, short: bool) -> list[RunResult]:
+    """One run of a scenario as a pool task (top-level and picklable, for Dask workers):
+    the run into ``target`` (:func:`run_once`), one result per robot of the run; its
+    ``label``: the run's name after its scenario's (``Scenario.with_settings``), ``run`` for
+    a scenario's only run. A failed run is a result with its ``error`` (and
+    ``target/error.txt``), not an exception: lockstep runs are deterministic, and a rerun
+    would fail the same way. A rerun after the worker died removes what the failed attempt
+    left in ``target`` first."""
+    label = run.name.partition("/")[2] or "run"
+    results = [RunResult(s.name or label, run.of_robot(s), target, s.name) for s in run.setups()]
+    _clear_previous_attempt(target)
+    try:
+        run_once(run, target, short, results)
+    except Exception as err:  # noqa: BLE001 - reported, the other runs go on
+        for result in results:
+            result.error = f"{type(err).__name__}: {err}"
+        (target / "error.txt").write_text(traceback.format_exc())
+    return results
+
+
+def _clear_previous_attempt(target: Path) -> None:
+    """Remove a failed attempt's files from ``target``, once its nodes are gone: those on
+    this machine (their command lines name ``target``) and, where that cannot be seen (the
+    attempt ran on another machine), once its recorder has closed the bag (it stops by
+    itself when its worker dies, processes.py)."""
+    if not any((target / name).exists() for name in RUN_FILES):
+        return
+    deadline = time.monotonic() + PREVIOUS_ATTEMPT_WAIT
+    bag = target / "bag"
+    while time.monotonic() < deadline and (
+        _processes_naming(target) or (bag.is_dir() and not (bag / "metadata.yaml").exists())
+    ):
+        time.sleep(0.2)
+    for name in RUN_FILES:
+        path = target / name
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        elif path.exists():
+            path.unlink()
+
+
+def _processes_naming(directory: Path) -> list[int]:
+    """Processes on this machine whose command line names a file under ``directory`` (a
+    run's nodes: their ``--params-file`` is in ``<run>/logs``)."""
+    needle = os.fsencode(str(directory) + os.sep)
+    found = []
+    if not os.path.isdir("/proc"):  # not Linux: nothing to see, the bag is awaited alone
+        return found
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry.name}/cmdline", "rb") as f:
+                if needle in f.read():
+                    found.append(int(entry.name))
+        except OSError:  # gone meanwhile, or not ours to read
+            continue
+    return found
 
 
 def run_scenario(
     scenario: Scenario,
     out: Path,
     short: bool = False,
-    jobs: int = 2,
+    pool: RunPool | None = None,
     log: Callable[[str], None] = print,
 ) -> list[RunResult]:
-    """Every run of ``scenario`` (one, or one per variant, ``jobs`` at a time): a result
-    per run, or per robot of each run in a world of several."""
+    """Every run of ``scenario`` (one, or one per variant), each a task of ``pool`` (None:
+    two threads of this process): a result per run, or per robot of each run in a world of
+    several, in the scenario's order. A run whose task failed twice (its worker died) is a
+    result with that error. Ctrl-C cancels the runs of a pool made here; a caller's pool is
+    the caller's to cancel."""
     runs = scenario.runs(short)
+    out = out.absolute()  # the same path on every worker (a shared file system)
     out.mkdir(parents=True, exist_ok=True)
-
-    def one(k: int) -> list[RunResult]:
-        label, run = runs[k]
-        target = out if len(runs) == 1 else out / _safe(label)
-        results = [
-            RunResult(s.name or label, run.of_robot(s), target, s.name) for s in run.setups()
-        ]
-        try:
-            run_once(run, target, short, results)
-            log(f"  {run.name}: done")
-        except Exception as err:  # noqa: BLE001 - reported, the other runs go on
-            for result in results:
-                result.error = f"{type(err).__name__}: {err}"
-            (target / "error.txt").write_text(traceback.format_exc())
-            log(f"  {run.name}: FAILED: {results[0].error}")
-        return results
-
-    pool = ThreadPoolExecutor(max_workers=max(1, jobs))
+    own = pool is None
+    if pool is None:
+        pool = RunPool(2, "threads", log)
     try:
-        futures = [pool.submit(one, k) for k in range(len(runs))]
-        return [result for f in futures for result in f.result()]
+        futures = {}
+        for label, run in runs:
+            target = out if len(runs) == 1 else out / _safe(label)
+            futures[pool.submit(run.name, execute_run, run, target, short)] = (label, run, target)
+        for future in as_completed(futures):
+            label, run, target = futures[future]
+            if future.cancelled():
+                continue
+            err = future.exception()
+            if err is None:
+                failed = future.result()[0].error
+                log(f"  {run.name}: FAILED: {failed}" if failed else f"  {run.name}: done")
+            else:
+                log(f"  {run.name}: FAILED: {type(err).__name__}: {err}")
+        return [result for future, run in futures.items() for result in _results(future, *run)]
     except KeyboardInterrupt:
-        pool.shutdown(wait=False, cancel_futures=True)
-        stop_all_runs()  # the running loops' processes; their threads then fail and end
+        if own:
+            pool.cancel()  # the running loops' processes stopped, the queued runs dropped
         raise
     finally:
-        pool.shutdown(wait=True)
+        if own:
+            pool.close()
+
+
+def _results(future, label: str, run: Scenario, target: Path) -> list[RunResult]:
+    """The run's results, or, if its task failed (twice), results carrying that error."""
+    err = future.exception()
+    if err is None:
+        return future.result()
+    message = f"{type(err).__name__}: {err}"
+    target.mkdir(parents=True, exist_ok=True)
+    (target / "error.txt").write_text(f"the run's task failed twice: {message}\n")
+    return [
+        RunResult(s.name or label, run.of_robot(s), target, s.name, error=message)
+        for s in run.setups()
+    ]
 
 
 def _safe(label: str) -> str:
@@ -138,18 +220,25 @@ def run_once(scenario: Scenario, out: Path, short: bool, results: list[RunResult
     # The simulator pauses at each change and at the end: every run ends at exactly
     # `duration`, with the same samples.
     sim_params = {**scenario.plant, "pause_at": changes[0].at if changes else duration}
-    with _closed_loop(scenario, out / "logs", sim_params, bag) as loop:
-        with _active_lock:
-            _active.add(loop)
-        try:
-            _drive(loop, scenario, duration, results)
-            loop.settle_recording()
-        finally:
-            with _active_lock:
-                _active.discard(loop)
+    clock = [time.monotonic()]
+    timings: dict[str, float] = {}
+
+    def lap(name: str) -> None:
+        now = time.monotonic()
+        timings[name] = now - clock[0]
+        clock[0] = now
+
+    with _closed_loop(scenario, out / "logs", sim_params, bag) as loop, on_cancel(loop.close):
+        lap("start")
+        _drive(loop, scenario, duration, results)
+        lap("run")
+        loop.settle_recording()
+    lap("stop")
     (out / "events.json").write_text(json.dumps(_events(results), indent=1))
     analysis = analyze_bag_to(out / "report", bag)
+    lap("analysis")
     for result in results:
+        result.timings = dict(timings)
         result.metrics = analysis.metrics
         result.state = next(
             (c.state for c in analysis.analysis.controllers if c.metrics["node"] == result.node),

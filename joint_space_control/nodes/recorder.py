@@ -304,7 +304,8 @@ def _importable(msgtype: str) -> bool:
 
 
 def main(args: list[str] | None = None) -> None:
-    """Record until Ctrl-C or SIGTERM, then take what the subscriptions still hold (messages
+    """Record until Ctrl-C or SIGTERM (or until the process that started it is gone,
+    node_main.watch_parent), then take what the subscriptions still hold (messages
     delivered before the signal are not lost) and close the bag."""
     node_main.init(args, signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
@@ -320,6 +321,14 @@ def main(args: list[str] | None = None) -> None:
 
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, on_signal)
+
+    def log(message: str) -> None:
+        if recorder:
+            recorder[0].get_logger().warning(message)
+        else:
+            print(f"warning: {message}", file=sys.stderr, flush=True)
+
+    node_main.watch_parent(log)  # its starting process killed: the bag is closed as on SIGTERM
     try:
         node = Recorder()
     except (ValueError, ParameterException) as err:

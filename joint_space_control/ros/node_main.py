@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -17,6 +19,12 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from joint_space_control.ros.control_path import spin_node
+
+#: The environment variable that names the process that started a node
+#: (experiments/processes.py sets it): once that process is gone, the node stops.
+PARENT_PID_ENV = "JSC_PARENT_PID"
+#: How often [s] a node looks whether its starting process is still there.
+PARENT_POLL = 0.25
 
 
 def init_error(err: BaseException) -> str:
@@ -37,6 +45,33 @@ def init(args: list[str] | None, **kwargs: Any) -> None:
         sys.exit(2)
 
 
+def watch_parent(log: Callable[[str], None]) -> threading.Thread | None:
+    """Stop this process exactly as SIGTERM does once the process named by
+    ``JSC_PARENT_PID`` is gone (``os.getppid()`` no longer that pid: the node was
+    re-parented), so that a node never outlives the run that started it, even when that
+    process is killed (a Dask worker SIGKILLed mid-run) and cannot stop its nodes. Node
+    processes run in sessions of their own (processes.py), so nothing else would reach them.
+
+    A daemon thread polls every :data:`PARENT_POLL` seconds; ``log`` is called once, with
+    the reason. Without the variable (a node started by hand or by ``ros2 run``) nothing is
+    watched and None is returned."""
+    raw = os.environ.get(PARENT_PID_ENV, "")
+    try:
+        parent = int(raw)
+    except ValueError:
+        return None
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL)
+        log(f"the process that started this node (pid {parent}) is gone: stopping")
+        os.kill(os.getpid(), signal.SIGTERM)  # the handler of run_node, in the main thread
+
+    thread = threading.Thread(target=watch, name="jsc-parent-watch", daemon=True)
+    thread.start()
+    return thread
+
+
 def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None:
     """Create the node and spin it until Ctrl-C or SIGTERM (both shut rclpy down cleanly).
 
@@ -47,6 +82,9 @@ def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None
     missing ``--params-file``) is reported on one line and ends the process with exit code 2
     instead of a traceback; so is one the node finds just after its start and stops for
     (its ``exit_error``: a second simulator's /clock discovered late).
+
+    A node started by :mod:`~joint_space_control.experiments.processes` also stops, as on
+    SIGTERM, once the process that started it is gone (:func:`watch_parent`).
     """
     # Ctrl-C and SIGTERM are handled here, not by rclpy: rclpy's handlers shut the context
     # down at once, under threads still waiting on it (a SIGSEGV now and then in the stress
@@ -64,6 +102,14 @@ def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None
 
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, on_signal)
+
+    def log(message: str) -> None:
+        if node is not None:
+            node.get_logger().warning(message)
+        else:
+            print(f"warning: {message}", file=sys.stderr, flush=True)
+
+    watch_parent(log)
     stopped_because = None
     try:
         executor = SingleThreadedExecutor()

@@ -153,6 +153,7 @@ def prepare(options: TuneOptions) -> Prepared:
     )
     name = f"{robot}_{options.controller}"
     out = Path(options.out) if options.out is not None else Path("out/tune") / name
+    out = out.absolute()  # the path the workers are given
     out.mkdir(parents=True, exist_ok=True)
     settings = {
         "robot": robot,

@@ -303,24 +303,24 @@ def test_a_failed_run_is_a_failed_trial_and_the_study_goes_on(tmp_path):
 
 
 class ThreadPool:
-    """The RunPool interface (jobs, scheduler, log; submit, cancel, workers, description)."""
+    """The RunPool interface (jobs, scheduler, log; submit, cancel, close, missing, workers,
+    description), in threads."""
 
     def __init__(self, jobs=2, scheduler=None, log=print):
         self.workers = jobs
         self.description = f"{jobs} test threads"
-        self.cancelled = False
-
-    def __enter__(self):
-        self.pool = ThreadPoolExecutor(self.workers)
-        return self
+        self.pool = ThreadPoolExecutor(jobs)
 
     def submit(self, label, fn, *args):
         return self.pool.submit(fn, *args)
 
-    def cancel(self):
-        self.cancelled = True
+    def missing(self, directory):
+        return [] if Path(directory).is_dir() else ["here"]
 
-    def __exit__(self, *exc):
+    def cancel(self):
+        self.pool.shutdown(wait=False, cancel_futures=True)
+
+    def close(self):
         self.pool.shutdown(wait=True)
 
 

@@ -1,0 +1,179 @@
+"""``jsc bench`` section ``sweep``: how many runs a minute a sweep gets through on a Dask
+LocalCluster of 1 and then 2 workers, and where a run's wall time goes.
+
+One fixed sweep (short lockstep step responses of the planar arm under inverse dynamics,
+one run per ω_n) runs twice in one invocation, on a fresh LocalCluster each time, so the
+two rates are measured minutes apart at most on the same machine. Per run, the runner
+times its phases (:attr:`RunResult.timings`): ``start`` (the node processes started,
+imported and connected), ``run`` (the simulated time, lockstep), ``stop`` (the recorder's
+tail taken, the nodes stopped) and ``analysis`` (bag → report and figures); what remains of
+a worker's time per run (``other``) is the task's own cost (dispatch, a worker's first
+imports, results sent back). The CPU time of the sweep's processes (workers and nodes) per
+run gives the rate the machine's cores allow at most (``cpu_bound_runs_per_minute``), and
+how busy the machine was (all its processes) says how much of them the sweep had.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import resource
+import shutil
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from joint_space_control import machine
+from joint_space_control.experiments.distributed import RunPool
+from joint_space_control.experiments.runner import run_scenario
+from joint_space_control.experiments.scenario import Scenario, parse
+
+#: The phases of a run, in order (runner.run_once).
+PHASES = ("start", "run", "stop", "analysis")
+#: The swept natural frequencies [rad/s] (as many as the sweep has runs, cycled).
+OMEGAS = (6.0, 8.0, 10.0, 12.0, 14.0, 16.0)
+
+
+def sweep_scenario(runs: int, duration: float) -> Scenario:
+    """The benchmark's sweep: ``runs`` step responses of ``duration`` simulated seconds."""
+    data = {
+        "title": "jsc bench sweep",
+        "question": 0,
+        "robot": "planar_2dof",
+        "duration": duration,
+        "short_duration": duration,
+        "plant": {"initial_positions": [-1.0, 0.5]},
+        "controller": "inverse_dynamics_controller",
+        "parameters": {"law": "inverse_dynamics", "zeta": 1.0},
+        "reference": {"shape": "step", "target": [-0.9, 0.35]},
+        "variants": {
+            "name": "omega_n",
+            "runs": [
+                {"label": f"run{k}", "set": {"parameters.omega_n": OMEGAS[k % len(OMEGAS)]}}
+                for k in range(runs)
+            ],
+        },
+    }
+    return parse(data, "bench_sweep", Path("bench_sweep.yaml"))
+
+
+def _cpu_seconds() -> float:
+    """CPU time [s] of this process and of its reaped descendants (the cluster's workers,
+    once closed, and the node processes they waited for)."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+class _MachineMeter:
+    """How busy the machine's CPUs were (all processes, /proc/stat) over a span."""
+
+    def __init__(self) -> None:
+        self._start = machine._cpu_times()
+
+    def busy(self) -> float | None:
+        end = machine._cpu_times()
+        if self._start is None or end is None:
+            return None
+        delta = [b - a for a, b in zip(self._start, end, strict=False)]
+        total = sum(delta)
+        idle = delta[3] + delta[4]  # idle + iowait
+        return (total - idle) / total if total > 0 else None
+
+
+def throughput(
+    out: Path,
+    runs: int,
+    duration: float,
+    workers: Sequence[int] = (1, 2),
+    log: Callable[[str], None] = print,
+) -> dict[str, Any]:
+    """The sweep on a LocalCluster of each of ``workers`` workers in turn: one row each
+    (runs per minute, the phases of a run, CPU use), and the rate of the last over the
+    first."""
+    scenario = sweep_scenario(runs, duration)
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = cores or 1
+    rows = []
+    for n in workers:
+        target = out / f"workers_{n}"
+        shutil.rmtree(target, ignore_errors=True)
+        log(f"sweep: {runs} runs of {duration:g} s on a LocalCluster of {n} worker(s)")
+        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
+        cpu0, meter, opened = _cpu_seconds(), _MachineMeter(), time.monotonic()
+        with RunPool(n, None, log) as pool:
+            started = time.monotonic()
+            results = run_scenario(scenario, target, pool=pool, log=lambda _: None)
+            elapsed = time.monotonic() - started
+        total = time.monotonic() - opened
+        cpu = _cpu_seconds() - cpu0
+        ok = [r for r in results if r.error is None]
+        phases = {p: _mean([r.timings.get(p, math.nan) for r in ok]) for p in PHASES}
+        lane = elapsed * n / runs  # a worker's wall time per run
+        rows.append(
+            {
+                "workers": n,
+                "runs": runs,
+                "failed": runs - len(ok),
+                "simulated_s": duration,
+                "seconds": elapsed,
+                "runs_per_minute": 60.0 * runs / elapsed,
+                "cluster_start_and_close_s": total - elapsed,
+                "worker_seconds_per_run": lane,
+                "phases_s": phases,
+                "other_s": lane - sum(phases.values()),
+                "cpu_seconds": cpu,
+                "cpu_seconds_per_run": cpu / runs,
+                # the rate if the machine's cores did nothing else: what CPU alone allows
+                "cpu_bound_runs_per_minute": 60.0 * cores * runs / cpu if cpu > 0 else math.nan,
+                "cpu_cores_used": cpu / total,
+                "machine_busy_fraction": meter.busy(),
+                "load_average_1min_before": load,
+            }
+        )
+    first, last = rows[0], rows[-1]
+    return {
+        "robot": "planar_2dof",
+        "law": "inverse_dynamics",
+        "cores": cores,
+        "rows": rows,
+        "speedup": last["runs_per_minute"] / first["runs_per_minute"],
+    }
+
+
+def _mean(values: Sequence[float]) -> float:
+    finite = [v for v in values if math.isfinite(v)]
+    return sum(finite) / len(finite) if finite else math.nan
+
+
+def format_sweep(sweep: dict[str, Any]) -> list[str]:
+    """The section's lines of the bench table."""
+    if "skipped" in sweep:
+        return [f"sweep: skipped ({sweep['skipped']})", ""]
+    rows = sweep["rows"]
+    first = rows[0]
+    lines = [
+        f"sweep on a Dask LocalCluster: {first['runs']} runs of {first['simulated_s']:g} s "
+        f"simulated, {sweep['robot']} {sweep['law']}, lockstep ({sweep['cores']} cores)",
+        "  workers  runs/min  worker s/run   start    run   stop  analysis  other  "
+        "CPU s/run  CPU cores used  machine busy  failed",
+    ]
+    for row in rows:
+        p = row["phases_s"]
+        busy = row["machine_busy_fraction"]
+        lines.append(
+            f"  {row['workers']:>7}  {row['runs_per_minute']:>8.1f}"
+            f"  {row['worker_seconds_per_run']:>12.1f}"
+            f"  {p['start']:>6.1f} {p['run']:>6.1f} {p['stop']:>6.1f} {p['analysis']:>9.1f}"
+            f"  {row['other_s']:>5.1f}  {row['cpu_seconds_per_run']:>9.1f}"
+            f"  {row['cpu_cores_used']:>14.2f}"
+            f"  {'-' if busy is None else f'{100 * busy:.0f} %':>12}  {row['failed']:>6}"
+        )
+    lines.append(
+        f"  {rows[-1]['workers']} workers / {first['workers']}: "
+        f"{sweep['speedup']:.2f}x the runs per minute; the CPU time per run allows at most "
+        f"{rows[-1]['cpu_bound_runs_per_minute']:.1f} runs/min on {sweep['cores']} idle cores"
+    )
+    lines.append("")
+    return lines
