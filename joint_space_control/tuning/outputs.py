@@ -101,8 +101,9 @@ def report_markdown(
     lines += [f"| {k} | {v} |" for k, v in settings.items()]
     lines += [
         "",
-        f"Trials: {len(rows)} ({len(met)} meet the spec, "
-        f"{len(rows) - len(met) - len(failed)} miss it, {len(failed)} runs failed).",
+        f"Trials: {len(rows)} ({len(met)} {'meets' if len(met) == 1 else 'meet'} the spec, "
+        f"{len(rows) - len(met) - len(failed)} miss it, {len(failed)} "
+        f"{'run' if len(failed) == 1 else 'runs'} failed).",
         "",
     ]
     if best is None:

@@ -269,7 +269,7 @@ def closest_clause(problem: TuneProblem, best: outputs.TrialRow) -> str:
     where = f" on {joint}" if joint else ""
     return (
         f"{clause} (trial {best.number}: {fmt_value(value, clause.unit)}{where}, "
-        f"{100 * abs(clause.violation(value)):.0f} % of the bound away)"
+        f"{100 * abs(clause.violation(value)):.2g} % of the bound away)"
     )
 
 
@@ -305,9 +305,10 @@ def write_outputs(prepared: Prepared, study: optuna.Study, pool: str, elapsed: f
         )
         scenario = outputs.scenario_yaml(problem, gains, header)
         files.append(outputs.write_text(out / "scenario.yaml", scenario))
+    met_count = sum(r.state == "met" for r in rows)
     title = (
-        f"{problem.robot}, {problem.controller}\n{problem.spec}: "
-        f"{sum(r.state == 'met' for r in rows)} of {len(rows)} trials meet it"
+        f"{problem.robot}, {problem.controller}\n{problem.spec}: {met_count} of "
+        f"{len(rows)} trials {'meets' if met_count == 1 else 'meet'} it"
     )
     points = [
         figures.HistoryPoint(r.number, r.objective, r.state == "met")

@@ -4,9 +4,9 @@ cleanly and the same command resumes.
 
 The planar arm starts hanging (q0 = (−π/2, 0): no gravity load), so its effort limits are
 left to the 0.2 rad steps: from 0 (the arm horizontal) gravity holds 981 of the shoulder's
-2000 N·m and the spec is out of reach (docs/tuning.md). The study starts from the theory's
-design (ζ = 0.8, the least ω_n with a 25 % settling margin), then 7 TPE trials; the runs go
-to the default Dask LocalCluster of 2 workers.
+2000 N·m and only 2 of 24 trials met the spec (docs/tuning.md), too many runs for a test.
+The study starts from the theory's design (ζ = 0.8, the least ω_n with a 25 % settling
+margin), then 7 TPE trials; the runs go to the default Dask LocalCluster of 2 workers.
 """
 
 from __future__ import annotations
@@ -90,7 +90,8 @@ def test_tune_meets_the_spec_and_a_fresh_experiment_confirms_the_gains(tmp_path)
     metrics = json.loads((confirm / "scenario" / "report" / "metrics.json").read_text())
     config = metrics["controllers"]["/inverse_dynamics_controller"]["config"]
     assert config["omega_n"] == pytest.approx(gains["omega_n"])
-    print(f"tune: {tuned:.0f} s for {TRIALS} trials; confirmed {check['text']}")
+    best = next(line for line in report.splitlines() if line.startswith("## Best trial"))
+    print(f"tune: {tuned:.0f} s for {TRIALS} trials, {best}; confirmed {check['text']}")
 
 
 def test_ctrl_c_fails_the_trials_in_flight_and_the_same_command_resumes(tmp_path):
