@@ -6,10 +6,10 @@ inverse dynamics K_P = ω_n², K_D = 2ζω_n; the PD family K_P,i = B̂_ii(q0) �
 K_D,i = 2ζ B̂_ii(q0) ω_n. So one space serves both: ω_n,i log-uniform in ``omega_n`` (rad/s;
 log: a decade of stiffness weighs as much at 2 as at 20 rad/s), ζ_i uniform in ``zeta``.
 
-``gains="kp_kd"`` searches the gains themselves instead, over the same second-order box:
+``gains="kp_kd"`` searches the gains themselves instead, about the same second-order box:
 K_P,i log-uniform in b_i [ω_lo², ω_hi²] and K_D,i log-uniform in b_i [2ζ_lo ω_lo,
 2ζ_hi ω_hi], with b_i = B̂_ii(q0) for the PD family and 1 for inverse dynamics (its gains are
-in 1/s² and 1/s).
+in 1/s² and 1/s); drawn independently, their pairs reach beyond [ζ_lo, ζ_hi] at the corners.
 """
 
 from __future__ import annotations
