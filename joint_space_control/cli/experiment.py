@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from joint_space_control.experiments import scenario as scenarios
+from joint_space_control.experiments.params_file import with_params_file
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -43,13 +44,29 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--report", type=Path, default=None, help="also write DIR/results.md (e.g. docs/)"
     )
+    p.add_argument(
+        "--params-file",
+        type=Path,
+        default=None,
+        help="ROS parameter file whose entry for the scenario's controller overrides the "
+        "scenario's parameters (e.g. the best_params.yaml of jsc tune)",
+    )
     p.set_defaults(handler=_handle)
 
 
 def _handle(args: argparse.Namespace) -> int:
     if args.list:
         return list_scenarios()
-    return run(args.names, args.all, args.out, args.short, args.jobs, args.report, args.scheduler)
+    return run(
+        args.names,
+        args.all,
+        args.out,
+        args.short,
+        args.jobs,
+        args.report,
+        args.scheduler,
+        args.params_file,
+    )
 
 
 def list_scenarios() -> int:
@@ -76,6 +93,7 @@ def run(
     jobs: int,
     report: Path | None,
     scheduler: str | None = None,
+    params_file: Path | None = None,
 ) -> int:
     """Run the scenarios, all on one pool (:class:`RunPool`: ``scheduler`` None, a
     LocalCluster of ``jobs`` workers; an address; or ``"threads"``). Ctrl-C cancels the
@@ -101,6 +119,8 @@ def run(
         return error(f"--jobs must be >= 1, got {jobs}")
     try:
         loaded = [scenarios.load(n) for n in names]
+        if params_file is not None:
+            loaded = [with_params_file(s, params_file) for s in loaded]
     except ValueError as err:
         return error(str(err))
     out = out.absolute()  # the path the workers are given

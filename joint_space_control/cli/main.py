@@ -11,9 +11,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from joint_space_control.cli import analyze, bench, demo, experiment, recover, soak
+from joint_space_control.cli import analyze, bench, demo, experiment, recover, soak, tune
 
-COMMANDS = (demo, analyze, experiment, bench, soak, recover)
+COMMANDS = (demo, analyze, experiment, tune, bench, soak, recover)
 """The subcommand modules, in the order ``jsc --help`` lists them."""
 
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from joint_space_control.analysis.spec import judge, parse_spec
 from joint_space_control.experiments import boundaries, practice, views
 from joint_space_control.experiments.boundaries import gravity_bound
 from joint_space_control.experiments.views import Outcome, RunView
@@ -372,6 +373,29 @@ def peak_torque_grows(runs: list[RunView]) -> list[Outcome]:
     return [Outcome("peak_torque_grows", ok, f"peak |τ| {rows}", {"peak": peaks, "sat": sat})]
 
 
+def spec(runs: list[RunView], spec: str) -> list[Outcome]:
+    """A step-response specification (``"overshoot<=5, settling_2pct<=0.6"``,
+    analysis/spec.py: the one ``jsc tune`` tunes to), each clause over the worst joint."""
+    parsed = parse_spec(spec)
+    out = []
+    for r in runs:
+        j = judge(parsed, r.controller)
+        out.append(
+            Outcome(
+                "spec",
+                j.met,
+                f"{r.label}: {j.text()}",
+                {
+                    "spec": str(parsed),
+                    "values": [m.value for m in j.values],
+                    "joints": [m.joint for m in j.values],
+                    "violations": list(j.violations),
+                },
+            )
+        )
+    return out
+
+
 CHECKS: dict[str, Callable[..., list[Outcome]]] = {
     "final_error": final_error,
     "pd_offset": pd_offset,
@@ -383,6 +407,7 @@ CHECKS: dict[str, Callable[..., list[Outcome]]] = {
     "degrades": degrades,
     "peak_torque_grows": peak_torque_grows,
     "saturation_boundary": saturation_boundary,
+    "spec": spec,
     **practice.CHECKS,
 }
 

@@ -35,7 +35,7 @@ from joint_space_control.experiments.loop import TRUTH_TOPIC, ClosedLoop
 from joint_space_control.experiments.probe import in_namespace
 from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
 from joint_space_control.model.dynamics import RobotModel
-from joint_space_control.model.robots import resolve_robot
+from joint_space_control.ros import parameters as params
 from joint_space_control.trajectories.reference import Trajectory
 
 
@@ -289,7 +289,7 @@ def _drive(
     """Send each robot's reference, apply the scheduled changes at their times (one robot
     only), run to the end."""
     setups = scenario.setups()
-    models = [RobotModel(resolve_robot(s.robot)) for s in setups]
+    models = [setup_model(s) for s in setups]
     trajectories = [_reference(s, m.n, duration) for s, m in zip(setups, models, strict=True)]
     for s, model, traj in zip(setups, models, trajectories, strict=True):
         loop.probe.send_reference(
@@ -325,6 +325,17 @@ def _drive(
     for s, r in zip(setups, results, strict=True):
         _, q, _, _ = loop.probe.recordings[s.name].arrays()
         r.events.append({"t": duration, "q": q[-1].tolist(), "end": True})
+
+
+def setup_model(setup: RobotSetup) -> RobotModel:
+    """The robot's model as its controller builds it: from the robot parameters among its
+    ``parameters`` (``urdf_path`` with ``package_paths`` and ``xacro_args``, ``joints``,
+    ``effort_limits``) over the built-in ``robot``."""
+    defaults = {p.name: p.default for p in params.ROBOT_PARAMETERS}
+    given = {k: v for k, v in setup.parameters.items() if k in defaults}
+    return params.robot_model(
+        params.ParamValues(params.ROBOT_PARAMETERS, {**defaults, "robot": setup.robot, **given})
+    )
 
 
 def _reference(setup: RobotSetup, n: int, duration: float) -> Trajectory:

@@ -26,6 +26,7 @@ PACKAGES = ("joint_space_control", "sim_bridge")
 # - nodes, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level package);
 # - experiments: closed loops of node processes, scenarios, the soak run;
 # - bench: measurements that drive the experiments' process machinery;
+# - tuning: jsc tune's study, whose trials are experiment runs;
 # - cli: argument parsing that calls the layers below.
 LAYERS: tuple[tuple[str, ...], ...] = (
     (
@@ -50,6 +51,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("joint_space_control.nodes", "sim_bridge"),
     ("joint_space_control.experiments",),
     ("joint_space_control.bench",),
+    ("joint_space_control.tuning",),
     ("joint_space_control.cli",),
 )
 
