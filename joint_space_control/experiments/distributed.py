@@ -249,7 +249,9 @@ class _Dask:
                     n_workers=jobs,
                     threads_per_worker=1,
                     processes=True,
-                    dashboard_address=None,
+                    # its HTTP server on a free port: 8787 taken by another cluster
+                    # printed a warning
+                    dashboard_address=":0",
                     silence_logs=logging.CRITICAL,
                     preload=[__name__],  # dask_setup: Ctrl-C is the pool's to handle
                 )
