@@ -202,6 +202,33 @@ def _key_plots(result: ExperimentResult) -> list[Path]:
     return standard + [r.figures["positions"] for r in shown if "positions" in r.figures]
 
 
+#: The tuning example's page and figure beside the results page (docs/tuning.md, made with
+#: `jsc tune`: a study is not a scenario, so its numbers stay on that page).
+TUNING_PAGE = "tuning.md"
+TUNING_EXAMPLE = "#example-a-ur5-from-example-robot-data"
+TUNING_FIGURE = "figures/tune_ur5_best_step.png"
+
+
+def tuning_section(docs: Path) -> list[str]:
+    """The results page's pointer to the tuning example on a real description, when the
+    page goes beside ``tuning.md`` (docs/); nothing elsewhere."""
+    if not (docs / TUNING_PAGE).is_file() or not (docs / TUNING_FIGURE).is_file():
+        return []
+    return [
+        "## In practice: gains that meet a specification, on a robot nobody here wrote",
+        "",
+        "`jsc tune` searches a controller's gains (an Optuna study of lockstep step-response "
+        "runs on the Dask cluster) until a step response meets a specification. The example "
+        "is the UR5 of example-robot-data with inverse dynamics and `overshoot<=5, "
+        "settling_2pct<=0.8, peak_torque_ratio<=0.8`; the study, its numbers and the "
+        f"confirming `jsc experiment --params-file` run are in [Gain tuning]({TUNING_PAGE}"
+        f"{TUNING_EXAMPLE}).",
+        "",
+        f"![UR5 step response with the tuned gains against the specification]({TUNING_FIGURE})",
+        "",
+    ]
+
+
 def results_page(results: list[ExperimentResult], docs: Path, short: bool) -> Path:
     """``docs/results.md``: every experiment's answer with its numbers and plots."""
     docs.mkdir(parents=True, exist_ok=True)
@@ -234,6 +261,7 @@ def results_page(results: list[ExperimentResult], docs: Path, short: bool) -> Pa
             lines += [heading, ""]
         for result in chosen:
             lines.append(summary_markdown(result, docs, figures))
+    lines += tuning_section(docs)
     path = docs / "results.md"
     path.write_text("\n".join(lines))
     summary = []

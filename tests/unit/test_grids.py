@@ -461,3 +461,36 @@ def test_the_results_page_shows_a_grids_heat_maps_in_its_question(tmp_path):
     assert [a["values"] for a in entry["grid"]["axes"]] == [[0.6, 1.0, 1.4], [5, 10, 20, 40]]
     assert entry["grid"]["boundary"] == "saturation_onset"
     assert [r["grid_index"] for r in entry["runs"]] == [[0, 0], [0, 3], [2, 0], [2, 3]]
+
+
+def test_the_results_page_points_to_the_tuning_example_only_beside_it(tmp_path):
+    from joint_space_control.experiments.experiment import (
+        TUNING_FIGURE,
+        TUNING_PAGE,
+        tuning_section,
+    )
+
+    docs = tmp_path / "docs"
+    assert tuning_section(docs) == []  # elsewhere (a user's --report DIR): no dangling link
+    (docs / "figures").mkdir(parents=True)
+    (docs / TUNING_PAGE).write_text("# Gain tuning\n")
+    assert tuning_section(docs) == []  # the figure is missing: still nothing
+    (docs / TUNING_FIGURE).write_bytes(b"png")
+    text = "\n".join(tuning_section(docs))
+    assert f"]({TUNING_PAGE}#example-a-ur5-from-example-robot-data)" in text
+    assert f"]({TUNING_FIGURE})" in text
+
+
+def test_the_tuning_example_the_results_page_links_exists_in_the_docs():
+    from joint_space_control.experiments.experiment import (
+        TUNING_EXAMPLE,
+        TUNING_FIGURE,
+        TUNING_PAGE,
+    )
+
+    docs = Path(__file__).resolve().parents[2] / "docs"
+    headings = [
+        line for line in (docs / TUNING_PAGE).read_text().splitlines() if line[:3] == "## "
+    ]
+    anchors = {"#" + h[3:].strip().lower().replace(" ", "-").replace(":", "") for h in headings}
+    assert TUNING_EXAMPLE in anchors and (docs / TUNING_FIGURE).is_file()
