@@ -6,7 +6,12 @@ stopped when the test ends, passed or failed.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
+import subprocess
+import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -83,3 +88,40 @@ def make_loop(tmp_path: Path) -> Iterator[Any]:
     yield make
     for loop in loops:
         loop.close()
+
+
+def interrupt_once_running(
+    args: list[str], pattern: str, under: Path, running: float
+) -> tuple[subprocess.Popen, str, list[str]]:
+    """Run ``python -m joint_space_control.cli.main *args``, send it SIGINT ``running``
+    seconds after a bag matching ``under/pattern`` appeared (a run is under way), and wait
+    for it to end. Returns the process, its output and the pids of what it left running
+    with ``under`` in its command line (none, if it works): found, then killed, also when
+    the test fails."""
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "joint_space_control.cli.main", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+    )
+    output = ""
+    try:
+        deadline = time.monotonic() + 120
+        while not list(under.glob(pattern)):
+            assert proc.poll() is None and time.monotonic() < deadline, "no run started"
+            time.sleep(0.2)
+        time.sleep(running)
+        proc.send_signal(signal.SIGINT)
+        output, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        leftovers = subprocess.run(
+            ["pgrep", "-f", str(under)], capture_output=True, text=True
+        ).stdout.split()
+        for pid in leftovers:
+            with contextlib.suppress(ProcessLookupError, ValueError):
+                os.kill(int(pid), signal.SIGKILL)
+    return proc, output, leftovers

@@ -3,19 +3,18 @@ judged each on its own, and every installed scenario in its short (CI) form."""
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from joint_space_control.analysis.metrics import second_order_prediction
 from joint_space_control.experiments.scenario import available
+
+from .conftest import interrupt_once_running
 
 pytestmark = pytest.mark.integration
 
@@ -131,34 +130,12 @@ def test_every_scenario_runs_in_its_short_form(tmp_path, names):
 
 
 def test_ctrl_c_stops_every_node_of_a_running_experiment(tmp_path):
-    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
-    cmd = [sys.executable, "-m", "joint_space_control.cli.main", "experiment"]
-    proc = subprocess.Popen(
-        [*cmd, "q4_sinusoid_tracking", "--out", str(tmp_path)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env=env,
+    proc, output, leftovers = interrupt_once_running(
+        ["experiment", "q4_sinusoid_tracking", "--out", str(tmp_path)],
+        "q4_sinusoid_tracking/*/bag/*.mcap",
+        tmp_path,
+        running=2.0,
     )
-    try:
-        deadline = time.monotonic() + 120
-        while not list(tmp_path.glob("q4_sinusoid_tracking/*/bag/*.mcap")):
-            assert proc.poll() is None and time.monotonic() < deadline, "no run started"
-            time.sleep(0.2)
-        time.sleep(2.0)  # running
-        proc.send_signal(signal.SIGINT)
-        output, _ = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-        # what jsc experiment left running (none, if it works): found, then stopped, also
-        # when the test fails
-        leftovers = subprocess.run(
-            ["pgrep", "-f", str(tmp_path)], capture_output=True, text=True
-        ).stdout.split()
-        for pid in leftovers:
-            with contextlib.suppress(ProcessLookupError, ValueError):
-                os.kill(int(pid), signal.SIGKILL)
     assert proc.returncode == 130, output
     assert "interrupted" in output
     assert leftovers == [], f"node processes still running: {leftovers}"

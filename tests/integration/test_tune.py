@@ -11,10 +11,8 @@ margin), then 7 TPE trials; the runs go to the default Dask LocalCluster of 2 wo
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import signal
 import sqlite3
 import subprocess
 import sys
@@ -22,6 +20,8 @@ import time
 
 import pytest
 import yaml
+
+from .conftest import interrupt_once_running
 
 pytestmark = pytest.mark.integration
 
@@ -96,32 +96,9 @@ def test_tune_meets_the_spec_and_a_fresh_experiment_confirms_the_gains(tmp_path)
 
 def test_ctrl_c_fails_the_trials_in_flight_and_the_same_command_resumes(tmp_path):
     out = tmp_path / "tune"
-    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
-    cmd = [sys.executable, "-m", "joint_space_control.cli.main", *TUNE, "--out", str(out)]
-    proc = subprocess.Popen(
-        [*cmd, "--trials", "3"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env=env,
+    proc, output, leftovers = interrupt_once_running(
+        [*TUNE, "--out", str(out), "--trials", "3"], "trials/*/bag/*.mcap", out, running=1.0
     )
-    try:
-        deadline = time.monotonic() + 120
-        while not list(out.glob("trials/*/bag/*.mcap")):
-            assert proc.poll() is None and time.monotonic() < deadline, "no trial started"
-            time.sleep(0.2)
-        time.sleep(1.0)
-        proc.send_signal(signal.SIGINT)
-        output, _ = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-        leftovers = subprocess.run(
-            ["pgrep", "-f", str(out)], capture_output=True, text=True
-        ).stdout.split()
-        for pid in leftovers:
-            with contextlib.suppress(ProcessLookupError, ValueError):
-                os.kill(int(pid), signal.SIGKILL)
     assert proc.returncode == 130, output
     assert "resumes the study" in output and "Traceback" not in output
     assert leftovers == [], "node processes left running"
