@@ -64,19 +64,29 @@ def versions() -> dict[str, str]:
     return out
 
 
-class StealMeter:
-    """CPU time the hypervisor took from this machine's CPUs ("steal" in /proc/stat) while
-    a part of the benchmark ran, as a fraction of all CPU time; None where not available."""
+class CpuMeter:
+    """How this machine's CPUs spent their time (/proc/stat, all processes) since the meter
+    was made, as fractions of all CPU time; None where not available."""
 
     def __init__(self) -> None:
         self._start = _cpu_times()
 
-    def fraction(self) -> float | None:
+    def _delta(self) -> list[int] | None:
         end = _cpu_times()
         if self._start is None or end is None:
             return None
-        total = sum(end) - sum(self._start)
-        return (end[7] - self._start[7]) / total if total > 0 else None
+        delta = [b - a for a, b in zip(self._start, end, strict=False)]
+        return delta if sum(delta) > 0 else None
+
+    def steal(self) -> float | None:
+        """The time the hypervisor took ("steal") while a part of the benchmark ran."""
+        delta = self._delta()
+        return None if delta is None else delta[7] / sum(delta)
+
+    def busy(self) -> float | None:
+        """The time the CPUs were neither idle nor waiting for I/O."""
+        delta = self._delta()
+        return None if delta is None else (sum(delta) - delta[3] - delta[4]) / sum(delta)
 
 
 def _cpu_times() -> list[int] | None:

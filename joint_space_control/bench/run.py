@@ -99,9 +99,9 @@ def run(
     steal_rounds: dict[str, list[float]] = {}
 
     def measured(name: str, run_part: Callable[[], Any]) -> Any:
-        meter = machine.StealMeter()
+        meter = machine.CpuMeter()
         value = run_part()
-        fraction = meter.fraction()
+        fraction = meter.steal()
         if fraction is not None:  # parts run in rounds: the mean over them
             steal_rounds.setdefault(name, []).append(fraction)
             steal[name] = sum(steal_rounds[name]) / len(steal_rounds[name])

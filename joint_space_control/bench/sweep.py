@@ -66,22 +66,6 @@ def _cpu_seconds() -> float:
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
-class _MachineMeter:
-    """How busy the machine's CPUs were (all processes, /proc/stat) over a span."""
-
-    def __init__(self) -> None:
-        self._start = machine._cpu_times()
-
-    def busy(self) -> float | None:
-        end = machine._cpu_times()
-        if self._start is None or end is None:
-            return None
-        delta = [b - a for a, b in zip(self._start, end, strict=False)]
-        total = sum(delta)
-        idle = delta[3] + delta[4]  # idle + iowait
-        return (total - idle) / total if total > 0 else None
-
-
 def throughput(
     out: Path,
     runs: int,
@@ -101,7 +85,7 @@ def throughput(
         shutil.rmtree(target, ignore_errors=True)
         log(f"sweep: {runs} runs of {duration:g} s on a LocalCluster of {n} worker(s)")
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
-        cpu0, meter, opened = _cpu_seconds(), _MachineMeter(), time.monotonic()
+        cpu0, meter, opened = _cpu_seconds(), machine.CpuMeter(), time.monotonic()
         with RunPool(n, None, log) as pool:
             started = time.monotonic()
             results = run_scenario(scenario, target, pool=pool, log=lambda _: None)

@@ -30,7 +30,7 @@ from typing import Any
 from joint_space_control.analysis.bag import BagReader, ControllerState, JointStates, joint_states
 from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
-from joint_space_control.experiments.distributed import RunPool, on_cancel, stop_all
+from joint_space_control.experiments.distributed import RunPool, on_cancel
 from joint_space_control.experiments.loop import TRUTH_TOPIC, ClosedLoop
 from joint_space_control.experiments.probe import in_namespace
 from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
@@ -79,12 +79,6 @@ class RunResult:
 RUN_FILES = ("bag", "report", "logs", "events.json", "error.txt")
 #: How long [s] a retry waits for the failed attempt's nodes to stop and its bag to close.
 PREVIOUS_ATTEMPT_WAIT = 10.0
-
-
-def stop_all_runs() -> None:
-    """Stop every loop still running in this process (Ctrl-C): their node processes are
-    terminated (the runs then fail and end)."""
-    stop_all()
 
 
 def execute_run(run: Scenario, target: Path, short: bool) -> list[RunResult]:

@@ -214,7 +214,7 @@ def run(
     out: Path, options: SoakOptions = SoakOptions(), log: Callable[[str], None] = print
 ) -> dict[str, Any]:
     """Run the soak, write ``out/soak.json`` and return the report (with its verdict)."""
-    from joint_space_control.machine import StealMeter, machine, versions
+    from joint_space_control.machine import CpuMeter, machine, versions
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -258,7 +258,7 @@ def run(
             settled = time.monotonic() + SETTLE
             observer.spin_until(lambda: time.monotonic() >= settled, 5.0, "settling", check)
             observer.trigger("/sim_bridge/resume", check)
-            steal = StealMeter()
+            steal = CpuMeter()
             t0 = time.monotonic()
             next_change, next_move, next_sample = 0.0, 0.0, 0.0
             changes, moves = 0, 0
@@ -282,7 +282,7 @@ def run(
                     log(_progress(now, options.seconds, audit, tally, observer, controller))
                 observer.spin_once()
             duration = time.monotonic() - t0
-            cpu_steal = steal.fraction()
+            cpu_steal = steal.steal()
             _sample_memory(memory, pids, duration)  # the last sample, at the end of the run
             # Stop the loop, take the commands still in flight, then wait for diagnostics
             # of an idle window: their totals are final.
