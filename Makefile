@@ -31,17 +31,35 @@ venv: $(STAMP)
 # uses the PEP 517 setuptools backend): pip itself writes the console scripts into
 # .venv/bin, and setup.cfg's [develop]/[install] script dirs (meant for colcon's
 # `setup.py install/develop`) do not apply. The loop below fails loudly should that change.
+# Quiet: each step's output goes to $(INSTALL_LOG) (one log per install, appended step by
+# step) and one line per phase is printed; a failing step prints the log's path and its
+# last 20 lines and stops make.
+INSTALL_LOG := $(VENV)/install.log
 $(STAMP): setup.py setup.cfg
 	@test -n "$(PYTHON)" || { echo "error: no python3.11 or python3 on PATH" >&2; exit 1; }
-	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --upgrade pip
-	$(PY) -m pip install -e '.[pypi,test]'
-	@for exe in $(VENV_SCRIPTS); do \
+	@log=$(INSTALL_LOG); mkdir -p $(VENV) && : >"$$log" || exit 1; \
+	step() { \
+	  echo "+ $$*" >>"$$log"; \
+	  "$$@" >>"$$log" 2>&1 || { \
+	    echo "venv: failed: $$*" >&2; \
+	    echo "venv: log: $$log (last 20 lines below)" >&2; \
+	    tail -n 20 "$$log" | sed 's/^/  | /' >&2; \
+	    exit 1; }; \
+	}; \
+	if ! test -x $(PY); then \
+	  echo "venv: creating $(VENV) ($(notdir $(PYTHON)))"; \
+	  step $(PYTHON) -m venv $(VENV); \
+	fi; \
+	echo "venv: installing the package and its dependencies (log: $$log)"; \
+	step $(PY) -m pip install --upgrade pip; \
+	step $(PY) -m pip install -e '.[pypi,test]'; \
+	for exe in $(VENV_SCRIPTS); do \
 	  test -x $(VENV)/bin/$$exe || { \
 	    echo "error: $(VENV)/bin/$$exe missing after pip install -e (scripts redirected?)" >&2; \
 	    exit 1; }; \
-	done
-	touch $@
+	done; \
+	echo "venv: ready ($$SECONDS s)"
+	@touch $@
 
 # What PyPI cannot give: Xvfb, the X server the GUI test opens PyBullet's window on
 # (tests/integration/test_gui_view.py, skipped without it). Installed with apt-get
