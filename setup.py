@@ -50,6 +50,10 @@ PYPI_REQUIRES = [
     "dask[distributed]>=2024.8",
     # `jsc tune`: TPE studies with constraints, resumable from an RDB (SQLite) file.
     "optuna>=4,<6",
+    # The dashboard's web page: viser ships its built web client inside its wheel, so the
+    # page works with no internet; 3D robots from a URDF (viser.extras.ViserUrdf, on
+    # yourdfpy), uPlot plots and GUI controls.
+    "viser>=1.1.1,<2",
 ]
 
 # Test, lint and build-check tools (`make test`, `make colcon-check`, .ci/run).
@@ -67,6 +71,10 @@ TEST_REQUIRES = [
     # Real robot descriptions nobody here wrote (UR, Panda, xArm, Kinova, Z1, SO-100/101),
     # with meshes and package:// URIs: the corpus of tests/unit/test_corpus.py.
     "example-robot-data>=4.1,<7",
+    # The dashboard's browser test drives Debian's Chromium headless (`make system-deps`)
+    # by executable_path=/usr/bin/chromium (tests/integration/browser.py): no browser is
+    # ever downloaded, never run `playwright install`.
+    "playwright>=1.45,<2",
 ]
 
 setup(
