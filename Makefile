@@ -2,7 +2,8 @@
 #
 #   make venv          .venv with ROS 2 Jazzy + deps from PyPI, package installed editable
 #   make test          ruff check, ruff format --check, pytest   (what .ci/run runs first)
-#   make system-deps   Debian packages the tests need beyond PyPI (xvfb), apt-get if missing
+#   make system-deps   Debian packages the tests need beyond PyPI (xvfb, chromium), apt-get
+#                      for any missing
 #   make demo          short end-to-end demo into out/demo
 #   make stress        start/stop every executable 20 times with both signals (CI, ~4 min)
 #   make colcon-check  colcon build into build/colcon_ws and check the ament layout
@@ -62,26 +63,37 @@ $(STAMP): setup.py setup.cfg
 	@touch $@
 
 # What PyPI cannot give: Xvfb, the X server the GUI test opens PyBullet's window on
-# (tests/integration/test_gui_view.py, skipped without it). Installed with apt-get
-# (root, or passwordless sudo) when the Xvfb command is missing; where that is impossible
-# a message says what to install and the rest goes on. A failing apt-get is an error.
-APT_PACKAGES := xvfb
+# (tests/integration/test_gui_view.py), and Chromium, the browser the dashboard's browser
+# test drives headless through playwright (tests/integration/browser.py: WebGL in software,
+# with the SwiftShader that Debian's chromium package ships; DejaVu fonts for its text).
+# Each test is skipped without its program. SYSTEM_COMMANDS pairs each command with the
+# packages that bring it; those of every missing command are installed with apt-get (root,
+# or passwordless sudo). Where that is impossible a message says what to install and the
+# rest goes on. A failing apt-get is an error.
+SYSTEM_COMMANDS := Xvfb=xvfb chromium=chromium,fonts-dejavu-core
 system-deps:
-	@if command -v Xvfb >/dev/null 2>&1; then \
-	  echo "system-deps: Xvfb present"; \
+	@missing=""; present=""; pkgs=""; \
+	for pair in $(SYSTEM_COMMANDS); do \
+	  cmd="$${pair%%=*}"; \
+	  if command -v "$$cmd" >/dev/null 2>&1; then present="$$present $$cmd"; \
+	  else missing="$$missing $$cmd"; pkgs="$$pkgs $$(echo "$${pair#*=}" | tr , ' ')"; fi; \
+	done; \
+	why="for the GUI test (Xvfb) and the browser test (Chromium), each skipped without it"; \
+	if [ -z "$$missing" ]; then \
+	  echo "system-deps:$$present present"; \
 	elif ! command -v apt-get >/dev/null 2>&1; then \
-	  echo "system-deps: no apt-get here; install Xvfb to run the GUI test (skipped without it)"; \
+	  echo "system-deps: no apt-get here; install$$missing $$why"; \
 	else \
 	  if [ "$$(id -u)" -eq 0 ]; then sudo=""; \
 	  elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then sudo="sudo -n"; \
 	  else \
-	    echo "system-deps: not root; run 'sudo apt-get install $(APT_PACKAGES)' for the GUI test (skipped without it)"; \
+	    echo "system-deps: not root; run 'sudo apt-get install$$pkgs' $$why"; \
 	    exit 0; \
 	  fi; \
-	  echo "system-deps: apt-get install $(APT_PACKAGES)"; \
+	  echo "system-deps:$$missing missing; apt-get install$$pkgs"; \
 	  $$sudo env DEBIAN_FRONTEND=noninteractive apt-get update -q && \
 	  $$sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
-	    $(APT_PACKAGES); \
+	    $$pkgs; \
 	fi
 
 demo: venv
