@@ -1,0 +1,66 @@
+"""Headless Chromium for the browser tests: Debian's chromium driven by playwright.
+
+The browser is the system's (`make system-deps` installs Debian's chromium), found on PATH
+and handed to playwright by executable path: playwright's own browser builds are never
+downloaded (never run `playwright install`). Without chromium or playwright the test is
+skipped with the reason.
+
+WebGL runs in software, on the SwiftShader that Debian's chromium ships
+(/usr/lib/chromium/libvk_swiftshader.so), through ANGLE. Measured with chromium 156 and
+playwright 1.65, as root: only ``--no-sandbox`` is needed (without it "Chromium sandboxing
+failed!"), and playwright adds it itself unless ``chromium_sandbox=True``; headless Chromium
+picks ``--use-angle=swiftshader-webgl`` on its own, and playwright adds
+``--enable-unsafe-swiftshader`` (the opt-in Chromium asks for as it retires the automatic
+software fallback of WebGL). All three are passed explicitly all the same, so that neither
+an older playwright nor a GPU on the machine changes what the tests render with.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
+
+import pytest
+
+if TYPE_CHECKING:
+    from playwright.sync_api import Browser, Playwright
+
+#: Chromium's switches: software WebGL on SwiftShader, no sandbox (see the module docstring).
+CHROMIUM_ARGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox")
+
+
+def chromium_path() -> str:
+    """The system Chromium's executable, or skip the test."""
+    path = shutil.which("chromium")
+    if path is None:
+        pytest.skip("chromium is not installed (`make system-deps` installs Debian's chromium)")
+    return path
+
+
+def launch_chromium(playwright: Playwright, **options: Any) -> Browser:
+    """A headless system Chromium launched by ``playwright`` (``sync_playwright()``'s
+    object) with software WebGL; ``options`` go to ``chromium.launch`` (``args`` are added
+    after :data:`CHROMIUM_ARGS`). Skips the test when chromium is missing."""
+    args = [*CHROMIUM_ARGS, *options.pop("args", ())]
+    return playwright.chromium.launch(
+        executable_path=chromium_path(), headless=True, args=args, **options
+    )
+
+
+@contextmanager
+def chromium(**options: Any) -> Iterator[Browser]:
+    """Playwright started and the system Chromium launched (:func:`launch_chromium`), both
+    stopped on leaving, also on failure. Skips the test when playwright or chromium is
+    missing."""
+    sync_api = pytest.importorskip(
+        "playwright.sync_api", reason="playwright is not installed (the test extra has it)"
+    )
+    chromium_path()  # skip before starting playwright's driver
+    with sync_api.sync_playwright() as playwright:
+        browser = launch_chromium(playwright, **options)
+        try:
+            yield browser
+        finally:
+            browser.close()
