@@ -110,6 +110,7 @@ setup(
             "joint_space_control.nodes.inverse_dynamics_controller:main",
             "trajectory_generator = joint_space_control.nodes.trajectory_generator:main",
             "recorder = joint_space_control.nodes.recorder:main",
+            "dashboard = joint_space_control.nodes.dashboard:main",
             "jsc = joint_space_control.cli.main:main",
         ],
     },

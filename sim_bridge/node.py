@@ -76,6 +76,7 @@ from std_srvs.srv import Trigger
 from joint_space_control.ros import parameters as params
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
+from joint_space_control.ros.graph import node_names
 from joint_space_control.ros.loop_statistics import LoopStatistics
 from joint_space_control.ros.messages import COMMAND_QOS, CONTROL_PUBLISHER_QOS
 from joint_space_control.ros.node_main import run_node
@@ -92,7 +93,7 @@ from sim_bridge.parameters import (
     robot_values,
 )
 from sim_bridge.plant import World
-from sim_bridge.robot import COUNTERS, SimRobot, node_names  # noqa: F401  (COUNTERS: re-exported)
+from sim_bridge.robot import COUNTERS, SimRobot  # noqa: F401  (COUNTERS: re-exported)
 from sim_bridge.view import frame_view
 
 #: How often [s] the graph is checked for an owner that left (and for another /clock).

@@ -24,6 +24,7 @@ from std_msgs.msg import Float64MultiArray
 
 from joint_space_control.laws.limits import beyond_bound
 from joint_space_control.ros import parameters as params
+from joint_space_control.ros.graph import node_names
 from joint_space_control.ros.messages import (
     CONTROL_PUBLISHER_QOS,
     JointOrder,
@@ -43,11 +44,6 @@ COUNTERS = (
     "rejected.wrenches",
     "brake.engaged",
 )
-
-
-def node_names(endpoints: Any) -> set[str]:
-    """The fully qualified names of the nodes behind graph endpoints (topic info)."""
-    return {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in endpoints}
 
 
 def quaternion(rpy: np.ndarray) -> tuple[float, float, float, float]:

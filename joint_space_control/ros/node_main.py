@@ -13,7 +13,7 @@ from typing import Any
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -72,7 +72,11 @@ def watch_parent(log: Callable[[str], None]) -> threading.Thread | None:
     return thread
 
 
-def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None:
+def run_node(
+    factory: Callable[[], Node],
+    args: list[str] | None = None,
+    executor: Callable[[], Executor] = SingleThreadedExecutor,
+) -> None:
     """Create the node and spin it until Ctrl-C or SIGTERM (both shut rclpy down cleanly).
 
     A node with a ``control_path`` (:class:`~joint_space_control.ros.control_path.ControlPath`)
@@ -81,7 +85,9 @@ def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None
     A configuration error (unknown robot, invalid parameter at start-up, a malformed or
     missing ``--params-file``) is reported on one line and ends the process with exit code 2
     instead of a traceback; so is one the node finds just after its start and stops for
-    (its ``exit_error``: a second simulator's /clock discovered late).
+    (its ``exit_error``: a second simulator's /clock discovered late). ``executor`` makes
+    the executor that spins it (made before the node, so that a signal during start-up finds
+    it whole).
 
     A node started by :mod:`~joint_space_control.experiments.processes` also stops, as on
     SIGTERM, once the process that started it is gone (:func:`watch_parent`).
@@ -112,14 +118,14 @@ def run_node(factory: Callable[[], Node], args: list[str] | None = None) -> None
     watch_parent(log)
     stopped_because = None
     try:
-        executor = SingleThreadedExecutor()
+        spinner = executor()
         try:
             node = factory()
         except (ValueError, ParameterException) as err:
             print(f"error: {err}", file=sys.stderr)
             sys.exit(2)
         if not stopping.is_set():
-            spin_node(node, getattr(node, "control_path", None), executor, stopping)
+            spin_node(node, getattr(node, "control_path", None), spinner, stopping)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except _rclpy.RCLError:

@@ -12,7 +12,7 @@ from rclpy.node import Node
 
 from joint_space_control.arrays import per_joint
 from joint_space_control.model.dynamics import RobotModel
-from joint_space_control.model.robots import resolve_robot
+from joint_space_control.model.robots import RobotSpec, resolve_robot
 
 
 @dataclass(frozen=True)
@@ -288,21 +288,7 @@ def robot_model(
     """The model of the robot the parameters name, for the ``joints`` given, with its
     warnings logged by ``node`` (which also reads ``description_topic`` for
     ``robot:=topic``)."""
-    text = values["robot_description"]
-    urdf = values["urdf_path"]
-    robot = values["robot"] if not (text or urdf) else ""
-    if robot == ROBOT_FROM_TOPIC:
-        if node is None:
-            raise ValueError("robot:=topic needs a node to read the robot_description topic")
-        timeout = value(values, "description_timeout")
-        text, robot = description_from_topic(node, timeout, description_topic), ""
-    spec = resolve_robot(
-        robot,
-        urdf if not text else "",
-        robot_description=text,
-        xacro_args=value(values, "xacro_args"),
-        package_paths=value(values, "package_paths"),
-    )
+    spec = robot_spec(values, node, description_topic)
     limits = values["effort_limits"]
     model = RobotModel(
         spec,
@@ -314,6 +300,30 @@ def robot_model(
         for warning in (*spec.warnings, *model.warnings):
             node.get_logger().warning(warning)
     return model
+
+
+def robot_spec(
+    values: Mapping[str, Any],
+    node: Node | None = None,
+    description_topic: str = "robot_description",
+) -> RobotSpec:
+    """The description the robot parameters name (``robot_description``, else ``urdf_path``,
+    else ``robot``; ``robot:=topic`` reads ``description_topic`` through ``node``)."""
+    text = values["robot_description"]
+    urdf = values["urdf_path"]
+    robot = values["robot"] if not (text or urdf) else ""
+    if robot == ROBOT_FROM_TOPIC:
+        if node is None:
+            raise ValueError("robot:=topic needs a node to read the robot_description topic")
+        timeout = value(values, "description_timeout")
+        text, robot = description_from_topic(node, timeout, description_topic), ""
+    return resolve_robot(
+        robot,
+        urdf if not text else "",
+        robot_description=text,
+        xacro_args=value(values, "xacro_args"),
+        package_paths=value(values, "package_paths"),
+    )
 
 
 def description_from_topic(node: Node, timeout: float, name: str = "robot_description") -> str:

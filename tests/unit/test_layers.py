@@ -23,7 +23,8 @@ PACKAGES = ("joint_space_control", "sim_bridge")
 # - control: the controllers themselves (configuration, state, step), no ROS;
 # - analysis, recording: bags and metrics (rosbags, matplotlib; no running ROS graph);
 # - ros: the ROS 2 layer the nodes share (parameters, messages, control path, diagnostics);
-# - nodes, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level package);
+# - nodes, dashboard, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level
+#   package; dashboard holds the web page the dashboard node serves);
 # - experiments: closed loops of node processes, scenarios, the soak run;
 # - bench: measurements that drive the experiments' process machinery;
 # - tuning: jsc tune's study, whose trials are experiment runs;
@@ -48,7 +49,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("joint_space_control.control",),
     ("joint_space_control.analysis", "joint_space_control.recording"),
     ("joint_space_control.ros",),
-    ("joint_space_control.nodes", "sim_bridge"),
+    ("joint_space_control.nodes", "joint_space_control.dashboard", "sim_bridge"),
     ("joint_space_control.experiments",),
     ("joint_space_control.bench",),
     ("joint_space_control.tuning",),
