@@ -5,13 +5,15 @@ analyse its bag into a report, as a user would with the recorder and ``jsc analy
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
 
 from joint_space_control.cli import analyze
-from joint_space_control.experiments.demo import run_demo
+from joint_space_control.experiments.demo import run_demo, run_view_demo
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -29,7 +31,39 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="ROS domain for the run (default: one no other run on this machine uses)",
     )
-    p.set_defaults(handler=lambda args: run(args.out, args.duration, args.domain_id))
+    p.add_argument(
+        "--view",
+        action="store_true",
+        help="instead: the robot in realtime with the dashboard, until Ctrl-C (prints its URL)",
+    )
+    p.add_argument("--port", type=int, default=8080, help="--view: the dashboard's port")
+    p.set_defaults(
+        handler=lambda args: (
+            view(args.out, args.port)
+            if args.view
+            else run(args.out, args.duration, args.domain_id)
+        )
+    )
+
+
+def view(out: Path, port: int) -> int:
+    """``jsc demo --view``: the live demo until Ctrl-C or SIGTERM (exit 0)."""
+    from joint_space_control.nodes.dashboard import port_free
+
+    if not port_free("127.0.0.1", port):
+        print(
+            f"jsc demo --view: error: port {port} is in use (give another: --port N)",
+            file=sys.stderr,
+        )
+        return 2
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    try:
+        return run_view_demo(out, port, lambda m: print(f"jsc demo: {m}", flush=True), stop=stop)
+    except (RuntimeError, TimeoutError) as err:
+        print(f"jsc demo --view failed: {err}\nnode logs: {out / 'logs'}", file=sys.stderr)
+        return 1
 
 
 def run(out: Path, duration: float, domain_id: int | None) -> int:

@@ -11,9 +11,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from joint_space_control.cli import analyze, bench, demo, experiment, recover, soak, tune
+from joint_space_control.cli import analyze, bench, demo, experiment, recover, soak, tune, view
 
-COMMANDS = (demo, analyze, experiment, tune, bench, soak, recover)
+COMMANDS = (demo, view, analyze, experiment, tune, bench, soak, recover)
 """The subcommand modules, in the order ``jsc --help`` lists them."""
 
 

@@ -367,6 +367,7 @@ class RobotPanel:
         limits = list(self.info.position_limits) or [(-math.pi, math.pi)] * len(self.info.joints)
         with gui.add_folder("Reference"):
             self._targets = []
+            self._targets_set = False
             for joint, (lo, hi) in zip(self.info.joints, limits, strict=True):
                 lo = lo if math.isfinite(lo) else -math.pi
                 hi = hi if math.isfinite(hi) else math.pi
@@ -401,6 +402,14 @@ class RobotPanel:
             sine = gui.add_button("Send sinusoid q̄ + Δ sin ωt (q̄: the set-points above)")
             sine.on_click(lambda event: self._report(event, self._send_sinusoid()))
             self.reference_message = gui.add_markdown(" ")
+
+    def hold_targets(self, q_d: np.ndarray) -> None:
+        """Start the set-point sliders at the set-point in force (once)."""
+        if getattr(self, "_targets_set", True) or not np.all(np.isfinite(q_d)):
+            return
+        for handle, value in zip(self._targets, q_d, strict=True):
+            handle.value = min(max(float(value), handle.min), handle.max)
+        self._targets_set = True
 
     def _send_setpoint(self) -> str | None:
         targets = [h.value for h in self._targets]

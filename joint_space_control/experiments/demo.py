@@ -1,6 +1,6 @@
 """The default closed loop of ``jsc demo``: planar_2dof, PD + g(q), a step, in lockstep,
 headless, recorded to a bag (analysed by the caller, as a user would with the recorder and
-``jsc analyze``).
+``jsc analyze``); and ``jsc demo --view``: the same robot in realtime with the dashboard.
 
 The run is library code, not CLI code, so that the command line only reports: it is the
 same :class:`~joint_space_control.experiments.loop.ClosedLoop` the scenarios use, with the
@@ -10,6 +10,8 @@ nodes' installed parameter files.
 from __future__ import annotations
 
 import shutil
+import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +19,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from joint_space_control.experiments.domains import lease_domain
 from joint_space_control.experiments.loop import ClosedLoop
+from joint_space_control.experiments.processes import ProcessGroup
 from joint_space_control.paths import config_file
 
 JOINTS = ["joint1", "joint2"]
@@ -69,3 +73,65 @@ def run_demo(
         loop.hold_at(duration)
         _, q, _, _ = loop.probe.recording.arrays()
     return DemoRun(bag, report, out / "logs", np.array(SETPOINT) - q[-1])
+
+
+def run_view_demo(
+    out: Path,
+    port: int,
+    log: Callable[[str], None] = print,
+    host: str = "127.0.0.1",
+    stop: threading.Event | None = None,
+    started: Callable[[ViewDemo], None] | None = None,
+) -> int:
+    """The demo's robot in realtime with the dashboard, until ``stop`` is set (Ctrl-C or
+    SIGTERM when run from ``jsc demo --view``): sim_bridge and the controller from their
+    installed parameter files (the controller on simulation time), the trajectory generator's
+    step, the dashboard on ``host``:``port``. Node logs in ``out/logs``. ``started`` is
+    called once the page answers. Returns 0, or 1 when a node exited on its own (its log
+    is printed)."""
+    import urllib.request
+
+    stop = stop or threading.Event()
+    logs = out / "logs"
+    with lease_domain() as lease, ProcessGroup(logs, lease.domain_id, (lease.fileno(),)) as group:
+        group.start("sim_bridge", _params("sim_bridge.yaml"))
+        group.start(
+            "pd_gravity_controller",
+            {**_params("pd_gravity_controller.yaml"), "use_sim_time": True},
+        )
+        group.start(
+            "trajectory_generator", {**_params("trajectory_generator.yaml"), "use_sim_time": True}
+        )
+        group.start("dashboard", {"host": host, "port": port})
+        url = f"http://{'localhost' if host == '127.0.0.1' else host}:{port}"
+        deadline = time.monotonic() + 60.0
+        while not stop.is_set():
+            group.check_alive()
+            try:
+                urllib.request.urlopen(url, timeout=1.0).close()
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise TimeoutError(
+                        f"the dashboard did not answer on {url} within 60 s"
+                    ) from None
+                stop.wait(0.2)
+        view = ViewDemo(url, lease.domain_id, logs)
+        log(
+            f"planar_2dof, PD + g(q), realtime, a step to {SETPOINT} rad; dashboard at {url} "
+            f"(ROS_DOMAIN_ID={lease.domain_id}; logs in {logs}); Ctrl-C stops it"
+        )
+        if started is not None:
+            started(view)
+        while not stop.wait(0.5):
+            group.check_alive()
+    return 0
+
+
+@dataclass(frozen=True)
+class ViewDemo:
+    """Where the live demo runs."""
+
+    url: str
+    domain_id: int
+    logs: Path

@@ -583,6 +583,8 @@ class Dashboard(Node):
                 t, y = ctrl.window.view()
                 rows = y.reshape(len(y), len(STATE_FIELDS), n)
                 signals = {f: rows[:, k, :] for k, f in enumerate(STATE_FIELDS)}
+                if len(t):
+                    robot.panel.hold_targets(signals["q_d"][-1])
             else:
                 t, y = robot.window.view()
                 signals = {"q": y[:, :n], "tau": y[:, n:]}

@@ -1,0 +1,247 @@
+"""The dashboard as a person sees it: sim_bridge (realtime), a controller and the dashboard
+as processes, the page in Debian's Chromium (headless, software WebGL) driven by playwright.
+
+What a person does on the page reaches the nodes only through the standard parameter
+services and the documented topics and services, so every check reads the result back from
+the nodes themselves (parameter service, ``~/config``, the joint states), not from the page.
+The screenshots go to ``JSC_SCREENSHOTS`` when it names a folder (the README's figure is
+one of them), else beside the test's logs.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import signal
+import socket
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rclpy.parameter import parameter_value_to_python
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_msgs.msg import String
+
+from .browser import chromium
+from .conftest import SETPOINTS
+from .test_faults import ROBOT, Rig, rig  # noqa: F401  (the fixture)
+
+pytestmark = [pytest.mark.integration, pytest.mark.realtime]
+
+CONTROLLER = "/pd_gravity_controller"
+#: Generous waits: the software-rendered page and the loop share two cores.
+PAGE_TIMEOUT_MS = 60_000
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def screenshot_dir(tmp_path: Path) -> Path:
+    folder = Path(os.environ.get("JSC_SCREENSHOTS", tmp_path / "screenshots"))
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def wait_for_page(rig: Rig, url: str) -> None:  # noqa: F811
+    def answers() -> bool:
+        try:
+            urllib.request.urlopen(url, timeout=0.5).close()
+            return True
+        except OSError:
+            return False
+
+    rig.probe.spin_until(answers, 60.0, f"the dashboard on {url}", rig.group.check_alive)
+
+
+def open_page(browser, url: str):
+    page = browser.new_page(viewport={"width": 1500, "height": 950})
+    page.set_default_timeout(PAGE_TIMEOUT_MS)
+    outside = []
+    page.on(
+        "request",
+        lambda r: (
+            outside.append(r.url)
+            if not r.url.startswith(
+                ("http://127.0.0.1", "http://localhost", "ws://", "data:", "blob:")
+            )
+            else None
+        ),
+    )
+    page.goto(url)
+    page.get_by_text("Plots").first.wait_for()
+    # the "software WebGL" notice of headless Chromium covers the scene's corner
+    page.evaluate(
+        "document.querySelectorAll('.mantine-Notification-closeButton').forEach(b => b.click())"
+    )
+    return page, outside
+
+
+def number_box(page, label: str):
+    """The number input of the control labelled ``label`` (a slider's box or a number)."""
+    row = page.locator("div.mantine-Flex-root", has=page.locator(f"label:text-is('{label}')"))
+    return row.last.locator("input:not([type=hidden])").last
+
+
+def type_value(page, label: str, value: float) -> None:
+    box = number_box(page, label)
+    box.fill(f"{value}")
+    box.press("Enter")
+
+
+def scene_pixels(page) -> np.ndarray:
+    """The 3D view (left of the control panel) as an RGB array."""
+    from PIL import Image
+
+    canvas = page.locator("canvas").first
+    return np.asarray(Image.open(io.BytesIO(canvas.screenshot())).convert("RGB"), dtype=int)
+
+
+def drawn_share(pixels: np.ndarray) -> float:
+    """Share of the view's pixels that are coloured (channel spread > 24): the robots; the
+    background is white and the floor grid grey, both without colour."""
+    spread = pixels.max(axis=2) - pixels.min(axis=2)
+    return float(np.mean(spread > 24))
+
+
+def get_parameter(rig: Rig, node: str, name: str):  # noqa: F811
+    client = AsyncParameterClient(rig.probe.node, node)
+    future = client.get_parameters([name])
+    rig.probe.spin_until(future.done, 10.0, f"{node} get_parameters")
+    return parameter_value_to_python(future.result().values[0])
+
+
+def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tmp_path):  # noqa: F811
+    port = free_port()
+    url = f"http://127.0.0.1:{port}"
+    rig.group.start(
+        "sim_bridge",
+        {"robot": ROBOT, "mode": "realtime", "command_timeout": 2.0},
+    )
+    rig.group.start(
+        "pd_gravity_controller",
+        {"robot": ROBOT, "use_sim_time": True, "omega_n": 10.0, "zeta": 1.0},
+    )
+    rig.group.start("dashboard", {"port": port})
+    configs: list[dict] = []
+    rig.probe.node.create_subscription(
+        String,
+        f"{CONTROLLER}/config",
+        lambda m: configs.append(m.data),
+        QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL),
+    )
+    wait_for_page(rig, url)
+    shots = screenshot_dir(tmp_path)
+    with chromium() as browser:
+        page, outside = open_page(browser, url)
+        page.get_by_text(f"{CONTROLLER}:").first.wait_for()  # the controller is found
+
+        # the robot is drawn, and the plots advance
+        page.wait_for_timeout(3000)
+        share = drawn_share(scene_pixels(page))
+        print(f"robot drawn on {100 * share:.1f} % of the 3D view")
+        assert share > 0.01, share
+        plot = page.locator(".uplot canvas").first
+        before = plot.screenshot()
+        page.wait_for_timeout(2500)
+        assert plot.screenshot() != before, "the position plot did not move"
+
+        # a parameter set in the page is the node's parameter, and changes the gains in force
+        kp_before = np.array(json.loads(configs[-1])["kp"])
+        page.get_by_text(f"Parameters of {CONTROLLER}").click()
+        type_value(page, "omega_n[joint1]", 20.0)
+        type_value(page, "omega_n[joint2]", 20.0)
+        rig.probe.spin_until(
+            lambda: list(get_parameter(rig, CONTROLLER, "omega_n")) == [20.0, 20.0],
+            20.0,
+            "omega_n = [20, 20] on the controller",
+        )
+        rig.probe.spin_until(
+            lambda: not np.allclose(json.loads(configs[-1])["kp"], kp_before),
+            10.0,
+            "new gains in ~/config",
+        )
+        kp_after = np.array(json.loads(configs[-1])["kp"])
+        ratio = kp_after / kp_before
+        print(f"K_P {kp_before} -> {kp_after} (x{ratio})")
+        assert np.all((ratio > 3.0) & (ratio < 5.0)), ratio  # K_P ∝ ω_n²: ×4 at the same q
+
+        # a value the node refuses: its reason on the page, the value in force kept
+        type_value(page, "state_timeout", 0.0)
+        page.get_by_text("state_timeout rejected").first.wait_for()
+        assert get_parameter(rig, CONTROLLER, "state_timeout") == pytest.approx(0.1)
+
+        # set-points from the page move the arm there
+        target = SETPOINTS[ROBOT]
+        type_value(page, "move duration [s]", 0.0)
+        type_value(page, "q_d joint1 [rad]", target[0])
+        type_value(page, "q_d joint2 [rad]", target[1])
+        page.get_by_role("button", name="Send set-point").click()
+
+        def arrived() -> bool:
+            q = rig.probe.recording.positions
+            return bool(q) and np.max(np.abs(np.array(q[-1]) - target)) < 1e-3
+
+        rig.probe.spin_until(
+            arrived, 30.0, "the arm at the page's set-point", rig.group.check_alive
+        )
+        page.wait_for_timeout(2500)
+        page.screenshot(path=str(shots / "dashboard.png"))
+
+        # pause stops simulated time, resume runs it again
+        page.get_by_role("button", name="pause").click()
+        rig.probe.spin_for(1.0)
+        paused_at = rig.probe.latest_time()
+        rig.probe.spin_for(1.5)
+        assert rig.probe.latest_time() == paused_at
+        page.get_by_role("button", name="resume").click()
+        rig.probe.spin_until(
+            lambda: rig.probe.latest_time() > paused_at + 0.5, 10.0, "time running again"
+        )
+        assert outside == [], outside
+
+    # the loop does not depend on the dashboard: hung, then killed, it runs on
+    dashboard = rig.group.nodes["dashboard"]
+    for how in (signal.SIGSTOP, signal.SIGKILL):
+        start = rig.probe.latest_time()
+        dashboard.signal(how)
+        rig.probe.spin_for(2.0)
+        status = rig.diagnostics("sim_bridge", lambda s: True)
+        assert rig.probe.latest_time() > start + 1.0
+        assert status["owner"] == CONTROLLER and not status["braking"], status
+    dashboard.signal(signal.SIGCONT)
+    rig.group.nodes.pop("dashboard").stop()
+
+
+def test_two_robots_in_one_world_are_both_drawn(rig: Rig, tmp_path):  # noqa: F811
+    import yaml
+
+    from joint_space_control.paths import config_file
+
+    port = free_port()
+    url = f"http://127.0.0.1:{port}"
+    world = yaml.safe_load(config_file("two_robots.yaml").read_text())
+    sim_params = next(iter(world.values()))["ros__parameters"]
+    rig.group.start("sim_bridge", sim_params)
+    rig.group.start("dashboard", {"port": port})
+    wait_for_page(rig, url)
+    with chromium() as browser:
+        page, outside = open_page(browser, url)
+        for robot in sim_params["robots"]:
+            page.get_by_role("tab", name=robot).wait_for()
+        page.wait_for_timeout(4000)
+        pixels = scene_pixels(page)
+        page.screenshot(path=str(screenshot_dir(tmp_path) / "dashboard_two_robots.png"))
+        coloured = (pixels.max(axis=2) - pixels.min(axis=2)) > 24
+        columns = np.flatnonzero(coloured.mean(axis=0) > 0.002)
+        assert len(columns), "nothing drawn"
+        gaps = np.diff(columns)
+        print(f"coloured columns {columns.min()}..{columns.max()}, widest gap {gaps.max()} px")
+        # two robots side by side: two groups of coloured columns with space between them
+        assert gaps.max() > 15, "one blob: not both robots drawn apart"
+        assert outside == [], outside

@@ -1,0 +1,146 @@
+"""The dashboard's pure parts: a parameter's descriptor → its control (ranges, steps,
+choices, per-joint lists, read-only), the rolling window and its decimation, and the
+robots found from graph names. No browser, no ROS graph: descriptors are the
+rcl_interfaces messages a node's describe_parameters service answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
+from joint_space_control.dashboard import graph
+from joint_space_control.dashboard.controls import Control, choices, control_for
+from joint_space_control.dashboard.series import Window, decimate
+
+JOINTS = ("joint1", "joint2")
+
+
+def descriptor(name: str, **fields) -> ParameterDescriptor:
+    return ParameterDescriptor(name=name, **fields)
+
+
+def test_a_double_with_a_declared_range_is_a_slider_within_it_and_its_step():
+    d = descriptor(
+        "zeta", floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0, step=0.5)]
+    )
+    c = control_for(d, 1.0, JOINTS)
+    assert (c.kind, c.minimum, c.maximum, c.step, c.elements) == ("slider", 0.0, 10.0, 0.5, ())
+    assert c.ui_step() == 0.5
+    assert c.parameter_value([2.5]) == 2.5 and isinstance(c.parameter_value([2]), float)
+
+
+def test_a_continuous_range_gets_a_fine_slider_step_and_no_range_a_number_box():
+    ranged = descriptor(
+        "omega_n", floating_point_range=[FloatingPointRange(from_value=0.0, to_value=1000.0)]
+    )
+    assert control_for(ranged, 10.0).ui_step() == pytest.approx(1.0)
+    free = control_for(descriptor("x"), 3.0)
+    assert (free.kind, free.minimum, free.maximum) == ("number", None, None)
+
+
+def test_integers_use_the_integer_range_and_are_sent_as_integers():
+    d = descriptor("priority", integer_range=[IntegerRange(from_value=1, to_value=99, step=1)])
+    c = control_for(d, 50)
+    assert (c.kind, c.minimum, c.maximum, c.integer) == ("slider", 1.0, 99.0, True)
+    assert c.parameter_value([7.0]) == 7 and isinstance(c.parameter_value([7.0]), int)
+
+
+def test_per_joint_lists_get_one_control_per_joint_and_dynamic_numbers_too():
+    rng = [FloatingPointRange(from_value=0.0, to_value=1e6)]
+    kp = control_for(
+        descriptor("kp", dynamic_typing=True, floating_point_range=rng), [4000.0, 2000.0], JOINTS
+    )
+    assert kp.elements == JOINTS and kp.kind == "slider"
+    assert kp.element_values([4000.0, 2000.0]) == [4000.0, 2000.0]
+    assert kp.parameter_value([1.0, 2.0]) == [1.0, 2.0]
+    # one value for all joints (kp:=100, an integer given on the command line) → one per joint
+    one = control_for(descriptor("kp", dynamic_typing=True, floating_point_range=rng), 100, JOINTS)
+    assert one.elements == JOINTS and not one.integer
+    assert one.element_values(100) == [100, 100]
+    # a list of another length (a force's 3 components) is labelled by index
+    force = control_for(descriptor("wrench_force"), [0.0, 0.0, 1.0], JOINTS)
+    assert force.elements == ("0", "1", "2") and force.kind == "number"
+
+
+def test_choices_are_a_dropdown_and_plain_strings_a_text_box():
+    d = descriptor("gravity_compensation", additional_constraints="one of: full | none | desired")
+    c = control_for(d, "full")
+    assert (c.kind, c.options) == ("dropdown", ("full", "none", "desired"))
+    assert control_for(descriptor("output"), "runs/a").kind == "text"
+    assert choices("one of: a | b, [unit]") == ("a", "b")
+    assert choices(">= 0, one value or one per joint") == ()
+
+
+def test_read_only_and_uneditable_types_are_shown_with_the_reason():
+    ro = control_for(descriptor("robot", read_only=True), "planar_2dof")
+    assert (ro.kind, ro.why_not) == ("shown", "read-only")
+    names = control_for(descriptor("topics"), ["a", "b"])
+    assert names.kind == "shown" and "names" in names.why_not
+    empty = control_for(descriptor("effort_limits"), [])
+    assert empty.kind == "shown" and "empty" in empty.why_not
+    assert control_for(descriptor("use_sim_time"), False).kind == "checkbox"
+
+
+def test_hint_carries_description_and_constraints():
+    c = control_for(
+        descriptor("zeta", description="damping ratio", additional_constraints=">= 0"), 1.0
+    )
+    assert c.hint == "damping ratio; >= 0"
+    assert isinstance(c, Control) and c.label == "zeta"
+
+
+def test_window_keeps_the_last_seconds_in_order_and_restarts_when_time_goes_back():
+    w = Window(1, seconds=1.0, capacity=50)
+    for k in range(120):  # more than the ring holds
+        w.append(0.01 * k, np.array([k]))
+    t, y = w.view()
+    assert np.all(np.diff(t) > 0) and t[-1] == pytest.approx(1.19)
+    assert len(t) == 50 and y[-1, 0] == 119
+    w.append(0.0, np.array([-1.0]))  # a reset of the simulation
+    t, y = w.view()
+    assert len(t) == 1 and y[0, 0] == -1.0
+
+
+def test_decimation_stays_within_the_budget_and_keeps_every_peak():
+    t = np.linspace(0.0, 10.0, 10_001)
+    y = np.column_stack((np.sin(t), np.zeros_like(t)))
+    y[3_333, 1] = 5.0  # a one-sample spike
+    y[7_777, 0] = -3.0
+    td, yd = decimate(t, y, 300)
+    assert len(td) <= 300
+    assert np.all(np.diff(td) > 0)
+    assert yd[:, 1].max() == 5.0 and yd[:, 0].min() == -3.0
+    assert td[0] == 0.0
+    short_t, short_y = decimate(t[:10], y[:10], 300)
+    assert len(short_t) == 10 and np.array_equal(short_y, y[:10])
+
+
+TOPICS = [
+    ("/joint_states", ["sensor_msgs/msg/JointState"]),
+    ("/sim_bridge/true_joint_states", ["sensor_msgs/msg/JointState"]),
+    ("/arm/joint_states", ["sensor_msgs/msg/JointState"]),
+    ("/pd_gravity_controller/config", ["std_msgs/msg/String"]),
+    ("/pd_gravity_controller/state", ["std_msgs/msg/Float64MultiArray"]),
+    ("/arm/inverse_dynamics_controller/config", ["std_msgs/msg/String"]),
+    ("/arm/inverse_dynamics_controller/state", ["std_msgs/msg/Float64MultiArray"]),
+    ("/other/config", ["std_msgs/msg/String"]),  # no state: not a controller
+    ("/wrong/joint_states", ["std_msgs/msg/String"]),
+]
+
+
+def test_robots_and_controllers_are_found_from_topic_names_and_types():
+    robots = graph.robot_topics(TOPICS)
+    assert robots == {"": "/joint_states", "/arm": "/arm/joint_states"}
+    assert graph.controller_nodes(TOPICS) == [
+        "/arm/inverse_dynamics_controller",
+        "/pd_gravity_controller",
+    ]
+    subs = [("/arm/reference", [graph.TRAJECTORY]), ("/arm/joint_states", [graph.JOINT_STATE])]
+    assert graph.robot_of(subs, robots) == "/arm"
+    assert graph.topic_of(subs, graph.TRAJECTORY) == "/arm/reference"
+    assert graph.robot_of([("/x", [graph.JOINT_STATE])], robots) is None
+    assert graph.split_name("/arm/ctl") == ("ctl", "/arm")
+    assert graph.split_name("/ctl") == ("ctl", "/")
+    assert graph.parameter_prefix("/arm", ["iiwa", "arm"]) == "arm."
+    assert graph.parameter_prefix("", []) == ""
