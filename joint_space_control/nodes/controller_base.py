@@ -149,6 +149,7 @@ COMMON_PARAMETERS = (
             unit="Hz",
             minimum=0.0,
             exclusive=True,
+            maximum=1e5,
         ),
         params.ParamSpec(
             "trigger",
@@ -166,6 +167,7 @@ COMMON_PARAMETERS = (
             unit="s",
             minimum=0.0,
             exclusive=True,
+            maximum=60.0,
         ),
         params.ParamSpec(
             "kp",
@@ -174,6 +176,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             unit="N·m/rad",
             minimum=0.0,
+            maximum=1e6,
         ),
         params.ParamSpec(
             "kd",
@@ -182,6 +185,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             unit="N·m·s/rad",
             minimum=0.0,
+            maximum=1e6,
         ),
         params.ParamSpec(
             "omega_n",
@@ -191,6 +195,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             unit="rad/s",
             minimum=0.0,
+            maximum=1000.0,
         ),
         params.ParamSpec(
             "zeta",
@@ -198,6 +203,7 @@ COMMON_PARAMETERS = (
             "Damping ratio ζ (with omega_n or the default)",
             dynamic=True,
             minimum=0.0,
+            maximum=10.0,
         ),
         # The controller's own model (B̂, Ĉ, F̂, ĝ) can differ from the plant on purpose.
         params.ParamSpec(
@@ -207,6 +213,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             minimum=0.0,
             exclusive=True,
+            maximum=10.0,
         ),
         params.ParamSpec(
             "model_payload_mass",
@@ -214,6 +221,7 @@ COMMON_PARAMETERS = (
             "Controller model: point mass at the last link's centre of mass",
             unit="kg",
             minimum=0.0,
+            maximum=1000.0,
         ),
         params.ParamSpec(
             "model_friction",
@@ -222,6 +230,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             unit="N·m·s/rad",
             minimum=0.0,
+            maximum=1e4,
         ),
         params.ParamSpec(
             "model_gravity", True, "Controller model: false models no gravity (ĝ ≡ 0)"
@@ -242,6 +251,7 @@ COMMON_PARAMETERS = (
             unit="Hz",
             minimum=0.0,
             exclusive=True,
+            maximum=1e5,
         ),
         params.ParamSpec(
             "reference_derivatives",

@@ -183,8 +183,8 @@ def test_a_value_outside_the_declared_range_is_refused_with_its_name(node):
 
 def test_constraints_are_generated_from_the_declaration():
     spec = NODES["sim_bridge"][[s.name for s in SIM_BRIDGE].index("max_torque_rate")]
-    assert spec.constraints == ">= 0, one value or one per joint, [N·m/s]"
+    assert spec.constraints == ">= 0, <= 1e+07, one value or one per joint, [N·m/s]"
     rate = next(s for s in COMMON_PARAMETERS if s.name == "rate")
-    assert rate.constraints == "> 0, [Hz]"
+    assert rate.constraints == "> 0, <= 100000, [Hz]"
     trigger = next(s for s in COMMON_PARAMETERS if s.name == "trigger")
     assert trigger.constraints == "auto | timer | state"
