@@ -457,6 +457,24 @@ class JointController(Node):
         )
 
     # -- parameters --------------------------------------------------------------------
+    def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
+        """rclpy's, with every refusal counted and logged (:meth:`_refused`)."""
+        return [self._refused(r) for r in super().set_parameters(parameter_list)]
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
+        """rclpy's (what the parameter services call), with a refusal counted and logged."""
+        return self._refused(super().set_parameters_atomically(parameter_list))
+
+    def _refused(self, result: SetParametersResult) -> SetParametersResult:
+        """Count a refused update in ``rejected.parameters`` and log its reason, whoever
+        refused it: the on-set callback (a value this node's check refuses) or rclpy before
+        it (a double outside the descriptor's floating_point_range, a wrong type, a
+        read-only parameter)."""
+        if not result.successful:
+            self.counts["rejected.parameters"] += 1
+            self.get_logger().warning(f"rejected parameter update: {result.reason}")
+        return result
+
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         values = params.with_changes(self, self._specs, changes)
         try:
@@ -472,9 +490,7 @@ class JointController(Node):
                 self._state_timeout = timeout
                 self._reject_factor = reject_factor
                 self._values = values
-        except ValueError as err:
-            self.counts["rejected.parameters"] += 1
-            self.get_logger().warning(f"rejected parameter update: {err}")
+        except ValueError as err:  # counted and logged by _refused
             return SetParametersResult(successful=False, reason=str(err))
         self._publish_config(values)
         self.get_logger().info(

@@ -203,7 +203,8 @@ def test_a_node_refuses_a_double_out_of_range_and_keeps_the_old_value(context):
 
 
 def test_a_controller_refuses_a_per_joint_list_out_of_range_and_keeps_the_old_gains(context):
-    """rclpy does not check arrays against a range: the node's on-set callback does (check)."""
+    """rclpy does not check arrays against a range: the node's on-set callback does (check);
+    every refusal, rclpy's too, is counted in ``rejected.parameters``."""
     node = PDGravityControllerNode(context=context, start_parameter_services=False)
     try:
         before = node.config
@@ -212,6 +213,10 @@ def test_a_controller_refuses_a_per_joint_list_out_of_range_and_keeps_the_old_ga
         assert "'kp' must be >= 0 and <= 1e+06" in result.reason
         assert list(node.get_parameter("kp").value) == [100.0, 50.0]
         assert node.config is before
+        # a double out of range is refused by rclpy before the callback: counted all the same
+        (result,) = node.set_parameters([Parameter("zeta", value=12.0)])
+        assert result.successful is False and "Max: 10.0" in result.reason
+        assert node.config is before and node.counts["rejected.parameters"] == 2
     finally:
         node.close()
         node.destroy_node()
