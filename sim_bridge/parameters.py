@@ -33,6 +33,7 @@ WORLD_PARAMETERS = realtime_threads.PARAMETERS + (
         read_only=True,
         unit="Hz",
         **POSITIVE,
+        maximum=1e5,
     ),
     params.ParamSpec(
         "publish_rate",
@@ -41,6 +42,7 @@ WORLD_PARAMETERS = realtime_threads.PARAMETERS + (
         read_only=True,
         unit="Hz",
         **POSITIVE,
+        maximum=1e5,
     ),
     params.ParamSpec(
         "command_timeout",
@@ -48,6 +50,7 @@ WORLD_PARAMETERS = realtime_threads.PARAMETERS + (
         "Realtime: brake when no valid command for this long",
         unit="s",
         **POSITIVE,
+        maximum=60.0,
     ),
     params.ParamSpec(
         "republish_period",
@@ -56,6 +59,7 @@ WORLD_PARAMETERS = realtime_threads.PARAMETERS + (
         read_only=True,
         unit="s",
         **POSITIVE,
+        maximum=60.0,
     ),
     params.ParamSpec("start_paused", False, "Start paused (call ~/resume to run)", read_only=True),
     params.ParamSpec(
@@ -115,6 +119,7 @@ PLANT_PARAMETERS = (
         dynamic=True,
         unit="N·m·s/rad",
         **NONNEGATIVE,
+        maximum=1e4,
     ),
     params.ParamSpec(
         "payload_mass",
@@ -122,6 +127,7 @@ PLANT_PARAMETERS = (
         "Point mass at the centre of mass of the last joint's link (plant only)",
         unit="kg",
         **NONNEGATIVE,
+        maximum=1000.0,
     ),
     params.ParamSpec(
         "max_torque_rate",
@@ -130,6 +136,7 @@ PLANT_PARAMETERS = (
         dynamic=True,
         unit="N·m/s",
         **NONNEGATIVE,
+        maximum=1e7,
     ),
     params.ParamSpec(
         "encoder_counts",
@@ -138,6 +145,8 @@ PLANT_PARAMETERS = (
         dynamic=True,
         unit="counts/rev",
         **NONNEGATIVE,
+        maximum=1e9,
+        step=1.0,
     ),
     params.ParamSpec(
         "position_noise",
@@ -146,6 +155,7 @@ PLANT_PARAMETERS = (
         dynamic=True,
         unit="rad",
         **NONNEGATIVE,
+        maximum=1.0,
     ),
     params.ParamSpec(
         "velocity_noise",
@@ -154,12 +164,15 @@ PLANT_PARAMETERS = (
         dynamic=True,
         unit="rad/s",
         **NONNEGATIVE,
+        maximum=100.0,
     ),
     params.ParamSpec(
         "noise_seed",
         0,
         "Seed of the measurement noise (numpy default_rng); setting it restarts the noise",
         **NONNEGATIVE,
+        maximum=float(2**32 - 1),
+        step=1.0,
     ),
     params.ParamSpec(
         "measure_velocity",
@@ -174,6 +187,7 @@ PLANT_PARAMETERS = (
         dynamic=True,
         unit="N·m or N",
         **NONNEGATIVE,
+        maximum=1e4,
     ),
     params.ParamSpec(
         "static_friction",
@@ -182,6 +196,7 @@ PLANT_PARAMETERS = (
         dynamic=True,
         unit="N·m or N",
         **NONNEGATIVE,
+        maximum=1e4,
     ),
     params.ParamSpec(
         "wrench_link",
@@ -195,6 +210,8 @@ PLANT_PARAMETERS = (
         kind="numbers",
         length=3,
         unit="N",
+        minimum=-1e4,
+        maximum=1e4,
     ),
     params.ParamSpec(
         "wrench_torque",
@@ -203,6 +220,8 @@ PLANT_PARAMETERS = (
         kind="numbers",
         length=3,
         unit="N·m",
+        minimum=-1e4,
+        maximum=1e4,
     ),
     params.ParamSpec(
         "wrench_profile", "step", "Scheduled wrench profile in time", choices=PROFILES
@@ -215,7 +234,12 @@ PLANT_PARAMETERS = (
         **NONNEGATIVE,
     ),
     params.ParamSpec(
-        "wrench_duration", 0.0, "Scheduled wrench: length of a pulse", unit="s", **NONNEGATIVE
+        "wrench_duration",
+        0.0,
+        "Scheduled wrench: length of a pulse",
+        unit="s",
+        maximum=params.LONGEST,
+        **NONNEGATIVE,
     ),
     params.ParamSpec(
         "wrench_frequency",
@@ -223,6 +247,7 @@ PLANT_PARAMETERS = (
         "Scheduled wrench: frequency of a sinusoid",
         unit="Hz",
         **NONNEGATIVE,
+        maximum=1000.0,
     ),
 )
 

@@ -149,6 +149,7 @@ COMMON_PARAMETERS = (
             unit="Hz",
             minimum=0.0,
             exclusive=True,
+            maximum=1e5,
         ),
         params.ParamSpec(
             "trigger",
@@ -166,6 +167,7 @@ COMMON_PARAMETERS = (
             unit="s",
             minimum=0.0,
             exclusive=True,
+            maximum=60.0,
         ),
         params.ParamSpec(
             "kp",
@@ -174,6 +176,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             unit="N·m/rad",
             minimum=0.0,
+            maximum=1e6,
         ),
         params.ParamSpec(
             "kd",
@@ -182,6 +185,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             unit="N·m·s/rad",
             minimum=0.0,
+            maximum=1e6,
         ),
         params.ParamSpec(
             "omega_n",
@@ -191,6 +195,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             unit="rad/s",
             minimum=0.0,
+            maximum=1000.0,
         ),
         params.ParamSpec(
             "zeta",
@@ -198,6 +203,7 @@ COMMON_PARAMETERS = (
             "Damping ratio ζ (with omega_n or the default)",
             dynamic=True,
             minimum=0.0,
+            maximum=10.0,
         ),
         # The controller's own model (B̂, Ĉ, F̂, ĝ) can differ from the plant on purpose.
         params.ParamSpec(
@@ -207,6 +213,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             minimum=0.0,
             exclusive=True,
+            maximum=10.0,
         ),
         params.ParamSpec(
             "model_payload_mass",
@@ -214,6 +221,7 @@ COMMON_PARAMETERS = (
             "Controller model: point mass at the last link's centre of mass",
             unit="kg",
             minimum=0.0,
+            maximum=1000.0,
         ),
         params.ParamSpec(
             "model_friction",
@@ -222,6 +230,7 @@ COMMON_PARAMETERS = (
             dynamic=True,
             unit="N·m·s/rad",
             minimum=0.0,
+            maximum=1e4,
         ),
         params.ParamSpec(
             "model_gravity", True, "Controller model: false models no gravity (ĝ ≡ 0)"
@@ -242,6 +251,7 @@ COMMON_PARAMETERS = (
             unit="Hz",
             minimum=0.0,
             exclusive=True,
+            maximum=1e5,
         ),
         params.ParamSpec(
             "reference_derivatives",
@@ -447,6 +457,24 @@ class JointController(Node):
         )
 
     # -- parameters --------------------------------------------------------------------
+    def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
+        """rclpy's, with every refusal counted and logged (:meth:`_refused`)."""
+        return [self._refused(r) for r in super().set_parameters(parameter_list)]
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
+        """rclpy's (what the parameter services call), with a refusal counted and logged."""
+        return self._refused(super().set_parameters_atomically(parameter_list))
+
+    def _refused(self, result: SetParametersResult) -> SetParametersResult:
+        """Count a refused update in ``rejected.parameters`` and log its reason, whoever
+        refused it: the on-set callback (a value this node's check refuses) or rclpy before
+        it (a double outside the descriptor's floating_point_range, a wrong type, a
+        read-only parameter)."""
+        if not result.successful:
+            self.counts["rejected.parameters"] += 1
+            self.get_logger().warning(f"rejected parameter update: {result.reason}")
+        return result
+
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         values = params.with_changes(self, self._specs, changes)
         try:
@@ -462,9 +490,7 @@ class JointController(Node):
                 self._state_timeout = timeout
                 self._reject_factor = reject_factor
                 self._values = values
-        except ValueError as err:
-            self.counts["rejected.parameters"] += 1
-            self.get_logger().warning(f"rejected parameter update: {err}")
+        except ValueError as err:  # counted and logged by _refused
             return SetParametersResult(successful=False, reason=str(err))
         self._publish_config(values)
         self.get_logger().info(

@@ -49,6 +49,7 @@ class PDGravityControllerNode(JointController):
             dynamic=True,
             unit="N·m/(rad·s)",
             minimum=0.0,
+            maximum=1e6,
         ),
         params.ParamSpec(
             "gravity_estimate",
@@ -56,6 +57,8 @@ class PDGravityControllerNode(JointController):
             "Constant torque u added to the law (iterative gravity estimation)",
             dynamic=True,
             unit="N·m",
+            minimum=-1e6,
+            maximum=1e6,
         ),
     )
 

@@ -92,6 +92,7 @@ PARAMETERS = (
         unit="s",
         minimum=0.0,
         exclusive=True,
+        maximum=60.0,
     ),
     params.ParamSpec(
         "flush_period",
@@ -102,6 +103,7 @@ PARAMETERS = (
         read_only=True,
         unit="s",
         minimum=0.0,
+        maximum=3600.0,
     ),
     params.ParamSpec(
         "min_free_space_mb",

@@ -47,6 +47,7 @@ current configuration this check happens at publication.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -94,6 +95,7 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
         unit="s",
         minimum=0.0,
         exclusive=True,
+        maximum=params.LONGEST,
     ),
     params.ParamSpec(
         "center",
@@ -102,7 +104,15 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
         "configuration (needs start_from_current)",
         kind="numbers",
     ),
-    params.ParamSpec("amplitude", 0.1, "sinusoid: amplitude Δ", dynamic=True, unit="rad"),
+    params.ParamSpec(
+        "amplitude",
+        0.1,
+        "sinusoid: amplitude Δ",
+        dynamic=True,
+        unit="rad",
+        minimum=-10.0,
+        maximum=10.0,
+    ),
     params.ParamSpec(
         "omega",
         1.0,
@@ -110,8 +120,17 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
         dynamic=True,
         unit="rad/s",
         minimum=0.0,
+        maximum=1000.0,
     ),
-    params.ParamSpec("phase", 0.0, "sinusoid: phase φ", dynamic=True, unit="rad"),
+    params.ParamSpec(
+        "phase",
+        0.0,
+        "sinusoid: phase φ",
+        dynamic=True,
+        unit="rad",
+        minimum=-2 * math.pi,
+        maximum=2 * math.pi,
+    ),
     params.ParamSpec(
         "sample_period",
         shapes.DEFAULT_SAMPLE_PERIOD,
@@ -119,6 +138,7 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
         unit="s",
         minimum=0.0,
         exclusive=True,
+        maximum=10.0,
     ),
     params.ParamSpec(
         "waypoints",
@@ -144,6 +164,7 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
         "header.stamp = now + start_delay (node clock); 0: stamp 0 = 'now'",
         unit="s",
         minimum=0.0,
+        maximum=params.LONGEST,
     ),
     params.ParamSpec(
         "publish_on_start",

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 
 from joint_space_control.arrays import per_joint
@@ -19,12 +20,20 @@ from joint_space_control.model.robots import RobotSpec, resolve_robot
 class ParamSpec:
     """One parameter, declared once: default, description, unit, range, shape, mutability.
 
-    From it follow the ROS descriptor (:func:`declare`: read-only, dynamic typing and the
-    constraints text), the validation of every value (:meth:`check`, through :func:`value`)
-    and the documented defaults (tests/unit/test_parameter_docs.py).
+    From it follow the ROS descriptor (:func:`declare`: read-only, dynamic typing, the
+    numeric range and the constraints text), the validation of every value (:meth:`check`,
+    through :func:`value`) and the documented defaults (tests/unit/test_parameter_docs.py).
 
-    - numbers: ``minimum`` (with ``exclusive``: strictly above it); ``dynamic`` numbers take
-      one value or one per joint (``kp:=100`` or ``kp:=[100, 50]``);
+    - numbers: ``minimum`` (with ``exclusive``: strictly above it), ``maximum`` (inclusive)
+      and ``step`` (non-zero: the values lie on the grid minimum + k·step, to rclpy's
+      relative tolerance 1e-6; only for integer-valued things such as counts); ``dynamic``
+      numbers take one value or one per joint (``kp:=100`` or ``kp:=[100, 50]``). The range
+      applies to each value of a per-joint list (or of a vector). With both a minimum and a
+      maximum the descriptor carries it as ``floating_point_range`` (``integer_range`` for
+      an int default), which rqt_reconfigure and the dashboard draw as a slider; rclpy
+      enforces it on a single double (inclusive, so an exclusive minimum is left to
+      :meth:`check`), never on an array: :meth:`check`, called by every node's on-set
+      callback and at start, enforces all of it;
     - ``choices``: the allowed strings;
     - ``length``: a list of numbers with exactly this many values (a vector, say a force's
       3 components) instead of one value or one per joint;
@@ -40,6 +49,8 @@ class ParamSpec:
     unit: str = ""
     minimum: float | None = None
     exclusive: bool = False
+    maximum: float | None = None
+    step: float = 0.0
     choices: tuple[str, ...] = ()
     kind: str = ""
     length: int = 0
@@ -60,10 +71,44 @@ class ParamSpec:
 
     @property
     def bound(self) -> str:
-        """The declared range in words ("> 0", ">= 1"), "" when there is none."""
-        if self.minimum is None:
-            return ""
-        return f"{'>' if self.exclusive else '>='} {self.minimum:g}"
+        """The declared range in words ("> 0", ">= 1", ">= 0, <= 500", with its step
+        ", step 1"), "" when there is none."""
+        return ", ".join(self._bounds())
+
+    def _bounds(self) -> list[str]:
+        parts = []
+        if self.minimum is not None:
+            parts.append(f"{'>' if self.exclusive else '>='} {_number(self.minimum)}")
+        if self.maximum is not None:
+            parts.append(f"<= {_number(self.maximum)}")
+        if self.step:
+            parts.append(f"step {_number(self.step)}")
+        return parts
+
+    @property
+    def ranged(self) -> bool:
+        """Both ends declared: the descriptor carries the range (a slider's ends)."""
+        return self.minimum is not None and self.maximum is not None
+
+    def descriptor_range(self) -> dict[str, list[Any]]:
+        """``floating_point_range`` (``integer_range`` for an int default) of the
+        descriptor, for a number with both ends declared; empty otherwise."""
+        if not self.ranged or self.type not in ("number", "numbers"):
+            return {}
+        if isinstance(self.default, int) and not isinstance(self.default, bool):
+            ends = int(self.minimum), int(self.maximum), int(self.step)
+            return {
+                "integer_range": [IntegerRange(from_value=ends[0], to_value=ends[1], step=ends[2])]
+            }
+        return {
+            "floating_point_range": [
+                FloatingPointRange(
+                    from_value=float(self.minimum),
+                    to_value=float(self.maximum),
+                    step=float(self.step),
+                )
+            ]
+        }
 
     @property
     def constraints(self) -> str:
@@ -99,10 +144,10 @@ class ParamSpec:
         if kind == "names":
             return names({name: value}, name)
         if kind == "number":
-            bound = f" {self.bound}" if self.bound else ""
+            bound = f" {self._range_text()}" if self.bound else ""
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ValueError(f"'{name}' must be a number{bound}, got {value!r}")
-            if not self._within(np.array([value])):
+            if not math.isinf(value) and not self._within(np.array([value])):
                 raise ValueError(f"'{name}' must be a number{bound}, got {value!r}")
             if not np.isfinite(value):
                 raise ValueError(f"'{name}' must be finite")
@@ -116,13 +161,41 @@ class ParamSpec:
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"'{name}' must be finite, got {arr.tolist()}")
         if not self._within(arr):
-            raise ValueError(f"'{name}' must be {self.bound}, got {arr.tolist()}")
+            raise ValueError(f"'{name}' must be {self._range_text()}, got {arr.tolist()}")
         return arr
 
+    def _range_text(self) -> str:
+        """The range as a check's reason says it: ">= 0 and <= 10 (on a step of 1)"."""
+        parts = self._bounds()
+        step = f" on a step of {_number(self.step)}" if self.step else ""
+        return " and ".join(parts[:-1] if self.step else parts) + step
+
     def _within(self, arr: np.ndarray) -> bool:
-        if self.minimum is None:
-            return True
-        return bool(np.all(arr > self.minimum) if self.exclusive else np.all(arr >= self.minimum))
+        """Every value in the range (NaN is not; it is refused as non-finite after)."""
+        ok = True
+        if self.minimum is not None:
+            ok = bool(np.all(arr > self.minimum if self.exclusive else arr >= self.minimum))
+        if ok and self.maximum is not None:
+            ok = bool(np.all(arr <= self.maximum))
+        if ok and self.step:
+            ok = all(self._on_step(float(v)) for v in np.ravel(arr))
+        return ok
+
+    def _on_step(self, v: float) -> bool:
+        """On the grid minimum + k·step, as rclpy judges a floating_point_range's step."""
+        start = self.minimum or 0.0
+        k = round((v - start) / self.step)
+        return math.isclose(start + k * self.step, v, rel_tol=STEP_TOLERANCE)
+
+
+def _number(x: float) -> str:
+    """``x`` short (``%g``: 0.1, 1e+06) where that is exact, else with all its digits."""
+    short = f"{x:g}"
+    return short if float(short) == x else f"{x:.15g}"
+
+
+#: Relative tolerance of a value on its step grid (rclpy's Node.PARAM_REL_TOL).
+STEP_TOLERANCE = 1e-6
 
 
 class ParamValues(dict):
@@ -155,6 +228,7 @@ def declare(node: Node, specs: Iterable[ParamSpec]) -> None:
                 additional_constraints=spec.constraints,
                 read_only=spec.read_only,
                 dynamic_typing=spec.dynamic or spec.type in ("numbers", "names"),
+                **spec.descriptor_range(),
             ),
         )
     unknown = unknown_overrides(getattr(node, "_parameter_overrides", {}), specs)
@@ -211,6 +285,10 @@ def names(values: Mapping[str, Any], name: str) -> tuple[str, ...]:
     return tuple(items)
 
 
+#: [s] The upper end of a parameter that is a duration (a move, a pulse, a delay): one day,
+#: generous; the end of its slider, not a limit any run comes near.
+LONGEST = 86400.0
+
 #: Torques beyond this multiple of the effort limits are faults (sim_bridge rejects such a
 #: command; a controller counts such a computed torque, which it still clamps and sends).
 REJECT_FACTOR = ParamSpec(
@@ -219,6 +297,7 @@ REJECT_FACTOR = ParamSpec(
     "A torque beyond this multiple of the effort limit is a fault: sim_bridge rejects the "
     "command (between the limit and the bound it is clamped), a controller counts it",
     minimum=1.0,
+    maximum=100.0,
 )
 
 #: ``robot:=topic`` reads the description from the latched ``robot_description`` topic.
@@ -258,6 +337,7 @@ ROBOT_PARAMETERS = (
         unit="s",
         minimum=0.0,
         exclusive=True,
+        maximum=3600.0,
     ),
     ParamSpec(
         "joints",
@@ -275,6 +355,7 @@ ROBOT_PARAMETERS = (
         unit="N·m or N",
         minimum=0.0,
         exclusive=True,
+        maximum=1e6,
     ),
 )
 

@@ -24,6 +24,8 @@ PARAMETERS = (
         "(else one warning and normal scheduling); 0: normal scheduling",
         read_only=True,
         minimum=0.0,
+        maximum=float(scheduling.MAX_PRIORITY),
+        step=1.0,
     ),
     params.ParamSpec(
         "cpu_affinity",

@@ -183,8 +183,37 @@ def test_a_value_outside_the_declared_range_is_refused_with_its_name(node):
 
 def test_constraints_are_generated_from_the_declaration():
     spec = NODES["sim_bridge"][[s.name for s in SIM_BRIDGE].index("max_torque_rate")]
-    assert spec.constraints == ">= 0, one value or one per joint, [N·m/s]"
+    assert spec.constraints == ">= 0, <= 1e+07, one value or one per joint, [N·m/s]"
     rate = next(s for s in COMMON_PARAMETERS if s.name == "rate")
-    assert rate.constraints == "> 0, [Hz]"
+    assert rate.constraints == "> 0, <= 100000, [Hz]"
     trigger = next(s for s in COMMON_PARAMETERS if s.name == "trigger")
     assert trigger.constraints == "auto | timer | state"
+
+
+def documented_ranges() -> dict[str, list[str]]:
+    """{parameter: [the meaning cell of each row naming it]} over the parameter tables."""
+    rows: dict[str, list[str]] = {}
+    for page in ["parameters.md", *PAGES]:
+        for line in (DOC.parent / page).read_text().splitlines():
+            if line.startswith("| `"):
+                cells = [c.strip() for c in line.strip("|").split("|")]
+                for name in re.findall(r"`([a-z_]+)`", cells[0]):
+                    rows.setdefault(name, []).append(cells[-1])
+    return rows
+
+
+def test_every_declared_range_is_documented_as_the_descriptor_says_it():
+    """A parameter with both ends is documented with its range (``range `>= 0, <= 10```,
+    the descriptor's constraints text) in every row that names it; no row states another."""
+    rows = documented_ranges()
+    ranged = {s.name: s for specs in NODES.values() for s in specs if s.ranged}
+    assert len(ranged) > 30
+    for name, spec in ranged.items():
+        assert rows.get(name), name
+        for meaning in rows[name]:
+            stated = re.findall(r"range `([^`]*)`", meaning)
+            assert spec.bound in stated, (name, spec.bound, stated)
+    for name, meanings in rows.items():
+        for meaning in meanings:
+            for stated in re.findall(r"range `([^`]*)`", meaning):
+                assert name in ranged and stated == ranged[name].bound, (name, stated)
