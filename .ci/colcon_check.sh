@@ -13,7 +13,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 COLCON="${COLCON:-$ROOT/.venv/bin/colcon}"
 WS="${WS:-$ROOT/build/colcon_ws}"
 PKG=joint_space_control
-EXECUTABLES=(sim_bridge pd_gravity_controller inverse_dynamics_controller trajectory_generator recorder jsc)
+EXECUTABLES=(sim_bridge pd_gravity_controller inverse_dynamics_controller trajectory_generator recorder dashboard jsc)
 
 if [[ ! -x "$COLCON" && "$COLCON" != */* ]]; then
   COLCON="$(command -v "$COLCON" || echo "$COLCON")"

@@ -114,8 +114,8 @@ class ParamSpec:
     def constraints(self) -> str:
         """The declared range, shape and unit, in words (the descriptor's constraints)."""
         parts = []
-        if self.choices:
-            parts.append(" | ".join(self.choices))
+        if self.choices:  # ROS has no field for them: generic tools read "one of: a | b"
+            parts.append("one of: " + " | ".join(self.choices))
         if self.bound:
             parts.append(self.bound)
         if self.length:

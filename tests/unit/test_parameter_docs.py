@@ -187,7 +187,7 @@ def test_constraints_are_generated_from_the_declaration():
     rate = next(s for s in COMMON_PARAMETERS if s.name == "rate")
     assert rate.constraints == "> 0, <= 100000, [Hz]"
     trigger = next(s for s in COMMON_PARAMETERS if s.name == "trigger")
-    assert trigger.constraints == "auto | timer | state"
+    assert trigger.constraints == "one of: auto | timer | state"
 
 
 def documented_ranges() -> dict[str, list[str]]:
