@@ -86,23 +86,12 @@ class RobotInfo:
     notes: tuple[str, ...] = field(default=())
 
 
-def rpy_to_wxyz(rpy: Sequence[float]) -> tuple[float, float, float, float]:
-    """Roll, pitch, yaw (fixed axes x, y, z) → quaternion (w, x, y, z)."""
-    r, p, y = (0.5 * float(a) for a in rpy)
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(r),
-        math.sin(r),
-        math.cos(p),
-        math.sin(p),
-        math.cos(y),
-        math.sin(y),
-    )
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
+def base_rotation(rpy: Sequence[float]) -> Any:
+    """The base's orientation from roll, pitch, yaw (fixed axes x, y, z, as URDF and
+    ``base_rpy``), as viser's SO3."""
+    from viser.transforms import SO3
+
+    return SO3.from_rpy_radians(*(float(a) for a in rpy))
 
 
 def frame_camera(boxes: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
@@ -249,7 +238,7 @@ class RobotPanel:
         server.scene.add_frame(
             root,
             position=info.base_position,
-            wxyz=rpy_to_wxyz(info.base_rpy),
+            wxyz=base_rotation(info.base_rpy).wxyz,
             show_axes=False,
         )
         self._urdf = None
@@ -259,6 +248,8 @@ class RobotPanel:
             self._load_urdf(root, info)
         with tab:
             self.status = server.gui.add_markdown("waiting for the loop's diagnostics …")
+            if info.notes:  # what could not be shown (no 3D model), said where it is missing
+                server.gui.add_markdown("\n\n".join(info.notes))
             self._plots = self._add_plots()
             if info.controllers:
                 self._add_reference()
@@ -285,7 +276,7 @@ class RobotPanel:
             corners = np.array(
                 [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
             )
-            rot = _rotation(rpy_to_wxyz(info.base_rpy))
+            rot = base_rotation(info.base_rpy).as_matrix()
             world = corners @ rot.T + np.asarray(info.base_position)
             self.box = (world.min(axis=0), world.max(axis=0))
 
@@ -463,17 +454,6 @@ class RobotPanel:
             panel = ParameterPanel(gui, node, controls, values, self._actions)
         self.parameters[node] = panel
         return panel
-
-
-def _rotation(wxyz: Sequence[float]) -> np.ndarray:
-    w, x, y, z = wxyz
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 class PortInUseError(RuntimeError):

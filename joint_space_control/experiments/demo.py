@@ -81,14 +81,13 @@ def run_view_demo(
     log: Callable[[str], None] = print,
     host: str = "127.0.0.1",
     stop: threading.Event | None = None,
-    started: Callable[[ViewDemo], None] | None = None,
 ) -> int:
     """The demo's robot in realtime with the dashboard, until ``stop`` is set (Ctrl-C or
     SIGTERM when run from ``jsc demo --view``): sim_bridge and the controller from their
     installed parameter files (the controller on simulation time), the trajectory generator's
-    step, the dashboard on ``host``:``port``. Node logs in ``out/logs``. ``started`` is
-    called once the page answers. Returns 0, or 1 when a node exited on its own (its log
-    is printed)."""
+    step, the dashboard on ``host``:``port``. Node logs in ``out/logs``. Returns 0; a node that
+    exits on its own raises ``RuntimeError`` with its log, a page that never answers
+    ``TimeoutError``."""
     import urllib.request
 
     stop = stop or threading.Event()
@@ -116,22 +115,10 @@ def run_view_demo(
                         f"the dashboard did not answer on {url} within 60 s"
                     ) from None
                 stop.wait(0.2)
-        view = ViewDemo(url, lease.domain_id, logs)
         log(
             f"planar_2dof, PD + g(q), realtime, a step to {SETPOINT} rad; dashboard at {url} "
             f"(ROS_DOMAIN_ID={lease.domain_id}; logs in {logs}); Ctrl-C stops it"
         )
-        if started is not None:
-            started(view)
         while not stop.wait(0.5):
             group.check_alive()
     return 0
-
-
-@dataclass(frozen=True)
-class ViewDemo:
-    """Where the live demo runs."""
-
-    url: str
-    domain_id: int
-    logs: Path

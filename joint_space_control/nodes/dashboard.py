@@ -166,9 +166,8 @@ class PacedExecutor(SingleThreadedExecutor):
             if self._next - time.monotonic() > 0:
                 return
         self._next = time.monotonic() + self._period
-        deadline = time.monotonic() + self._period
         wait = timeout_sec
-        while time.monotonic() < deadline:
+        while time.monotonic() < self._next:
             try:
                 handler, _entity, _node = self.wait_for_ready_callbacks(timeout_sec=wait)
             except TimeoutException:
