@@ -94,16 +94,33 @@ def base_rotation(rpy: Sequence[float]) -> Any:
     return SO3.from_rpy_radians(*(float(a) for a in rpy))
 
 
+#: viser's default vertical field of view [rad].
+FOV = math.radians(50.0)
+
+
 def frame_camera(boxes: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """Camera (position, look_at) that shows every box (lower, upper corners [m]) whole,
-    from the front-right and a little above, z up."""
+    """Camera (position, look_at) from the front-right and a little above (z up), looking at
+    the centre of every box (lower, upper corners [m]), as close as it can be with every
+    corner within the vertical field of view (the horizontal one is wider on a landscape
+    view)."""
     lower = np.min([b[0] for b in boxes], axis=0)
     upper = np.max([b[1] for b in boxes], axis=0)
     centre = 0.5 * (lower + upper)
-    radius = max(0.5 * float(np.linalg.norm(upper - lower)), 0.3)
-    direction = np.array([1.0, -1.4, 0.8])
+    direction = np.array([0.45, -1.5, 0.75])
     direction /= np.linalg.norm(direction)
-    distance = radius / math.tan(math.radians(50.0) / 2) * 0.95  # viser's default fov 50°
+    corners = [
+        np.array([x, y, z]) - centre
+        for lo, hi in boxes
+        for x in (lo[0], hi[0])
+        for y in (lo[1], hi[1])
+        for z in (lo[2], hi[2])
+    ]
+    # a corner v is in view from centre + d·w when |v − (v·w)w| ≤ (d − v·w) tan(FOV/2)
+    need = [
+        v @ direction + np.linalg.norm(v - (v @ direction) * direction) / math.tan(FOV / 2)
+        for v in corners
+    ]
+    distance = max(max(need), 0.5)
     return centre + distance * direction, centre
 
 
@@ -213,6 +230,9 @@ def _short(value: Any, limit: int = 60) -> str:
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
+#: Smallest joint motion [rad] redrawn in 3D (a tenth of a milliradian).
+MOVED = 1e-4
+
 #: The plots of a robot, one per joint each: (title, signals drawn, unit).
 PLOTS = (
     ("Position", ("q", "q_d"), "rad"),
@@ -250,10 +270,14 @@ class RobotPanel:
             self.status = server.gui.add_markdown("waiting for the loop's diagnostics …")
             if info.notes:  # what could not be shown (no 3D model), said where it is missing
                 server.gui.add_markdown("\n\n".join(info.notes))
+            if self._urdf is not None:
+                shown = server.gui.add_checkbox(f"show {info.title} in 3D", initial_value=True)
+                shown.on_update(lambda _event: setattr(self._urdf, "show_visual", shown.value))
             self._plots = self._add_plots()
-            if info.controllers:
-                self._add_reference()
             self._add_push()
+        self.has_reference = False
+        if info.controllers:
+            self.add_reference()
 
     # -- 3D ----------------------------------------------------------------------------
     def _load_urdf(self, root: str, info: RobotInfo) -> None:
@@ -267,6 +291,19 @@ class RobotPanel:
         self._urdf = ViserUrdf(self._server, urdf, root_node_name=root, mesh_color_override=colour)
         if not self.info.links:
             self.info.links = tuple(link.name for link in urdf.robot.links)
+        joints = [urdf.joint_map.get(name) for name in self.info.joints]
+        limits = [j.limit if j is not None else None for j in joints]
+        if not self.info.effort_limits:  # no controller's ~/config: the URDF's
+            self.info.effort_limits = tuple(
+                float(x.effort) if x is not None and x.effort else math.nan for x in limits
+            )
+        if not self.info.position_limits:
+            self.info.position_limits = tuple(
+                (float(x.lower), float(x.upper))
+                if x is not None and x.lower is not None and x.upper is not None
+                else (-math.pi, math.pi)
+                for x in limits
+            )
         names = self._urdf.get_actuated_joint_names()
         self._cfg_index = {name: k for k, name in enumerate(names)}
         self._cfg = np.zeros(len(names))
@@ -284,11 +321,15 @@ class RobotPanel:
         """Move the 3D robot to the joint ``positions`` (the robot's joint order)."""
         if self._urdf is None:
             return
+        cfg = self._cfg.copy()
         for name, q in zip(self.info.joints, positions, strict=True):
             k = self._cfg_index.get(name)
             if k is not None and math.isfinite(q):
-                self._cfg[k] = q
-        self._urdf.update_cfg(self._cfg)
+                cfg[k] = q
+        if np.max(np.abs(cfg - self._cfg), initial=0.0) < MOVED:
+            return  # nothing a person could see moved: no new frame for the browser to draw
+        self._cfg = cfg
+        self._urdf.update_cfg(cfg)
 
     # -- plots -------------------------------------------------------------------------
     def _add_plots(self) -> dict[str, list[Any]]:
@@ -327,6 +368,7 @@ class RobotPanel:
                                 tuple(series),
                                 title=f"{joint} [{unit}]",
                                 scales={"x": {"time": False}},
+                                axes=({}, {"size": 64}),  # room for "-0.206"
                                 aspect=2.2,
                             )
                         )
@@ -334,27 +376,51 @@ class RobotPanel:
         return plots
 
     def show_signals(self, t: np.ndarray, signals: dict[str, np.ndarray]) -> None:
-        """Plot the window: ``t`` [s] and, per signal, a (samples × joints) array."""
+        """Plot the window: ``t`` [s] and, per signal, a (samples × joints) array. A signal
+        not given (no controller: no q_d) or a limit not known is hidden, not sent as NaN
+        (uPlot would take NaN for a value and lose its axis range)."""
         if len(t) < 2:
             return
         limits = list(self.info.effort_limits)
         for title, names, _unit in PLOTS:
-            if not all(n in signals for n in names[:1]):
+            present = [n for n in names if n in signals]
+            if not present:
                 continue
             for j, handle in enumerate(self._plots[title]):
-                present = [n for n in names if n in signals]
                 y = np.column_stack([signals[n][:, j] for n in present])
                 tt, yy = decimate(t, y, self._budget)
                 columns = {n: yy[:, k] for k, n in enumerate(present)}
-                data = [tt] + [columns.get(n, np.full(len(tt), np.nan)) for n in names]
+                filler = yy[:, 0]  # any column: the series it fills is hidden
+                data = [tt] + [columns.get(n, filler) for n in names]
+                shown = [n in columns for n in names]
                 if title == "Torque":
                     lim = limits[j] if j < len(limits) else math.nan
-                    data += [np.full(len(tt), lim), np.full(len(tt), -lim)]
+                    known = math.isfinite(lim)
+                    data += (
+                        [np.full(len(tt), lim), np.full(len(tt), -lim)] if known else [filler] * 2
+                    )
+                    shown += [known, known]
+                self._show_series(handle, shown)
                 handle.data = tuple(np.ascontiguousarray(d, dtype=np.float64) for d in data)
 
+    def _show_series(self, handle: Any, shown: list[bool]) -> None:
+        """Hide the series without data (sent again only when that changes)."""
+        series = handle.series
+        wanted = (series[0], *({**s, "show": v} for s, v in zip(series[1:], shown, strict=True)))
+        if [s.get("show", True) for s in series[1:]] != shown:
+            handle.series = wanted
+
     # -- reference and push ------------------------------------------------------------
-    def _add_reference(self) -> None:
+    def add_reference(self) -> None:
+        """The set-point and sinusoid controls (once a controller serves the robot)."""
+        if self.has_reference:
+            return
+        self.has_reference = True
         gui = self._server.gui
+        with self._tab:
+            self._build_reference(gui)
+
+    def _build_reference(self, gui: Any) -> None:
         limits = list(self.info.position_limits) or [(-math.pi, math.pi)] * len(self.info.joints)
         with gui.add_folder("Reference"):
             self._targets = []
@@ -390,7 +456,7 @@ class RobotPanel:
             self._sin_duration = gui.add_number(
                 "sinusoid duration [s]", initial_value=10.0, min=0.1, max=200.0, step=0.1
             )
-            sine = gui.add_button("Send sinusoid q̄ + Δ sin ωt (q̄: the set-points above)")
+            sine = gui.add_button("Send sinusoid q̄ + Δ sin ωt", hint="q̄: the set-points above")
             sine.on_click(lambda event: self._report(event, self._send_sinusoid()))
             self.reference_message = gui.add_markdown(" ")
 

@@ -88,6 +88,16 @@ PARAMETERS = (
         exclusive=True,
     ),
     params.ParamSpec(
+        "view_rate",
+        10.0,
+        "3D view updates per second (wall time); a robot that has not moved is not redrawn",
+        read_only=True,
+        unit="Hz",
+        minimum=0.0,
+        exclusive=True,
+        maximum=100.0,
+    ),
+    params.ParamSpec(
         "sample_rate",
         100.0,
         "Most samples per second taken of each topic of the loop (wall time)",
@@ -229,7 +239,7 @@ class Dashboard(Node):
             ParameterEvent, "/parameter_events", self._on_parameter_event, 100
         )
         self.create_timer(1.0 / params.value(values, "refresh_rate"), self._refresh)
-        self.create_timer(0.05, self._move_robots)
+        self.create_timer(1.0 / params.value(values, "view_rate"), self._move_robots)
         self._stop = threading.Event()
         self._discovery = threading.Thread(
             target=self._discover_loop, name="jsc-discovery", daemon=True
@@ -268,8 +278,11 @@ class Dashboard(Node):
             if key is not None:
                 self._add_controller(node, key, graph.topic_of(subscriptions, graph.TRAJECTORY))
         for robot in list(self._robots.values()):
-            if robot.panel is None and robot.joints:
+            if robot.panel is None and robot.joints and not robot.building:
+                robot.building = True  # once: a panel that failed is not built again
                 self._build_panel(robot)
+            elif robot.panel is not None and self._controller_of(robot.key) is not None:
+                robot.panel.add_reference()  # a controller that came after the plant
         for node in self._nodes_to_describe():
             self._describe(node)
 
@@ -600,12 +613,12 @@ class Dashboard(Node):
             return f"plant **{plant}**: waiting for its /diagnostics"
         ticks = float(d.get("ticks", "nan"))
         late = float(d.get("late", "nan"))
-        on_time = 100.0 * (1.0 - late / ticks) if ticks > 0 else math.nan
+        on_time = f"{100.0 * (1.0 - late / ticks):.1f} %" if ticks > 0 else "– (no ticks)"
         return (
             f"plant **{plant}**, mode **{d.get('mode', '?')}**, "
             f"simulated time **{float(d.get('sim_time_s', 'nan')):.2f} s**, "
             f"real-time factor **{float(d.get('real_time_factor', 'nan')):.2f}**, "
-            f"on time **{on_time:.1f} %**"
+            f"on time **{on_time}**"
         )
 
     def _robot_status(self, robot: RobotState) -> str:
@@ -622,7 +635,7 @@ class Dashboard(Node):
         }
         lines = [
             f"**{robot.key or '/'}** · joints {', '.join(robot.joints)}",
-            f"owner **{d.get(prefix + 'owner', '?')}**, brakes "
+            f"owner **{d.get(prefix + 'owner') or 'none'}**, brakes "
             f"**{'on' if d.get(prefix + 'braking', d.get('braking')) == '1' else 'off'}**"
             + (f", rejected {rejected}" if rejected else ", nothing rejected"),
         ]

@@ -15,6 +15,7 @@ import json
 import os
 import signal
 import socket
+import time
 import urllib.request
 from pathlib import Path
 
@@ -84,8 +85,9 @@ def open_page(browser, url: str):
 
 def number_box(page, label: str):
     """The number input of the control labelled ``label`` (a slider's box or a number)."""
-    row = page.locator("div.mantine-Flex-root", has=page.locator(f"label:text-is('{label}')"))
-    return row.last.locator("input:not([type=hidden])").last
+    label = page.get_by_text(label, exact=True)
+    row = label.locator("xpath=ancestor::div[contains(@class, 'mantine-Flex-root')][1]")
+    return row.locator("input:not([type=hidden])").last
 
 
 def type_value(page, label: str, value: float) -> None:
@@ -116,18 +118,49 @@ def region(page, selector: str) -> bytes:
     return page.screenshot(clip=box)
 
 
-def drawn_share(pixels: np.ndarray) -> float:
-    """Share of the view's pixels that are coloured (channel spread > 24): the robots; the
-    background is white and the floor grid grey, both without colour."""
-    spread = pixels.max(axis=2) - pixels.min(axis=2)
-    return float(np.mean(spread > 24))
+def robot_mask(page, title: str) -> np.ndarray:
+    """The pixels of the 3D view that the robot ``title`` draws: those that change when a
+    person unticks "show <title> in 3D" (and come back when ticked again)."""
+    page.get_by_role("tab", name=title).click()
+    box = page.get_by_label(f"show {title} in 3D")
+    shown = scene_pixels(page)
+    box.click()
+    page.wait_for_timeout(1500)
+    hidden = scene_pixels(page)
+    box.click()
+    page.wait_for_timeout(1500)
+    again = scene_pixels(page)
+    changed = np.abs(shown - hidden).max(axis=2) > 40
+    back = np.abs(again - shown).max(axis=2) <= 40
+    return changed & back
+
+
+_clients: dict[tuple[int, str], AsyncParameterClient] = {}
 
 
 def get_parameter(rig: Rig, node: str, name: str):  # noqa: F811
-    client = AsyncParameterClient(rig.probe.node, node)
-    future = client.get_parameters([name])
-    rig.probe.spin_until(future.done, 10.0, f"{node} get_parameters")
+    """``name`` as ``node``'s parameter service answers (one client per node and rig)."""
+    key = (id(rig), node)
+    if key not in _clients:
+        _clients[key] = AsyncParameterClient(rig.probe.node, node)
+    future = _clients[key].get_parameters([name])
+    rig.probe.spin_until(future.done, 30.0, f"{node} get_parameters", rig.group.check_alive)
     return parameter_value_to_python(future.result().values[0])
+
+
+def stopped_time(rig: Rig, quiet: float = 1.0, timeout: float = 30.0) -> float:  # noqa: F811
+    """The simulated time once the joint states stop advancing: the probe takes every
+    state the plant published (a loaded machine leaves it behind), so wait until it holds
+    still for ``quiet`` seconds."""
+    last = rig.probe.latest_time()
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        rig.probe.spin_for(quiet)
+        now = rig.probe.latest_time()
+        if now == last:
+            return now
+        last = now
+    raise AssertionError(f"simulated time still advancing after {timeout:g} s: {last:.3f} s")
 
 
 def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tmp_path):  # noqa: F811
@@ -139,7 +172,11 @@ def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tm
     )
     rig.group.start(
         "pd_gravity_controller",
-        {"robot": ROBOT, "use_sim_time": True, "omega_n": 10.0, "zeta": 1.0},
+        # state_timeout 1 s: Chromium drawing WebGL in software takes most of a core here,
+        # and the controller's joint states then miss the default 0.1 s now and then (the
+        # controller stops and restarts holding where it is, dropping the set-point sent);
+        # measured by jsc bench --sections dashboard, not hidden: docs/dashboard.md
+        {"robot": ROBOT, "use_sim_time": True, "omega_n": 10.0, "zeta": 1.0, "state_timeout": 1.0},
     )
     rig.group.start("dashboard", {"port": port})
     configs: list[dict] = []
@@ -157,9 +194,9 @@ def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tm
 
         # the robot is drawn, and the plots advance
         page.wait_for_timeout(3000)
-        share = drawn_share(scene_pixels(page))
+        share = float(np.mean(robot_mask(page, "robot")))
         print(f"robot drawn on {100 * share:.1f} % of the 3D view")
-        assert share > 0.01, share
+        assert share > 0.005, share  # ~5,000 pixels that vanish when the robot is hidden
         before = region(page, ".uplot canvas")
         page.wait_for_timeout(2500)
         assert region(page, ".uplot canvas") != before, "the position plot did not move"
@@ -168,31 +205,31 @@ def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tm
         rig.probe.spin_until(lambda: bool(configs), 10.0, f"{CONTROLLER}/config")
         kp_before = np.array(json.loads(configs[-1])["kp"])
         page.get_by_text(f"Parameters of {CONTROLLER}").click()
-        type_value(page, "omega_n[joint1]", 20.0)
-        type_value(page, "omega_n[joint2]", 20.0)
+        type_value(page, "omega_n[joint1]", 5.0)
+        type_value(page, "omega_n[joint2]", 5.0)
         rig.probe.spin_until(
-            lambda: list(get_parameter(rig, CONTROLLER, "omega_n")) == [20.0, 20.0],
+            lambda: list(get_parameter(rig, CONTROLLER, "omega_n")) == [5.0, 5.0],
             20.0,
-            "omega_n = [20, 20] on the controller",
+            "omega_n = [5, 5] on the controller",
         )
         rig.probe.spin_until(
-            lambda: not np.allclose(json.loads(configs[-1])["kp"], kp_before),
-            10.0,
-            "new gains in ~/config",
+            lambda: json.loads(configs[-1]).get("omega_n") == [5.0, 5.0],
+            30.0,
+            f"the gains designed from omega_n = [5, 5] in ~/config ({len(configs)} seen)",
         )
         kp_after = np.array(json.loads(configs[-1])["kp"])
         ratio = kp_after / kp_before
         print(f"K_P {kp_before} -> {kp_after} (x{ratio})")
-        assert np.all((ratio > 3.0) & (ratio < 5.0)), ratio  # K_P ∝ ω_n²: ×4 at the same q
+        assert np.all((ratio > 0.2) & (ratio < 0.3)), ratio  # K_P ∝ ω_n²: ×1/4 at the same q
 
         # a value the node refuses: its reason on the page, the value in force kept
         type_value(page, "state_timeout", 0.0)
         page.get_by_text("state_timeout rejected").first.wait_for()
-        assert get_parameter(rig, CONTROLLER, "state_timeout") == pytest.approx(0.1)
+        assert get_parameter(rig, CONTROLLER, "state_timeout") == pytest.approx(1.0)
 
         # set-points from the page move the arm there
         target = SETPOINTS[ROBOT]
-        type_value(page, "move duration [s]", 0.0)
+        type_value(page, "move duration [s]", 1.0)  # a minimum-jerk move, within the limits
         type_value(page, "q_d joint1 [rad]", target[0])
         type_value(page, "q_d joint2 [rad]", target[1])
         page.get_by_role("button", name="Send set-point").click()
@@ -209,8 +246,7 @@ def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tm
 
         # pause stops simulated time, resume runs it again
         page.get_by_role("button", name="pause").click()
-        rig.probe.spin_for(1.0)
-        paused_at = rig.probe.latest_time()
+        paused_at = stopped_time(rig)
         rig.probe.spin_for(1.5)
         assert rig.probe.latest_time() == paused_at
         page.get_by_role("button", name="resume").click()
@@ -249,13 +285,13 @@ def test_two_robots_in_one_world_are_both_drawn(rig: Rig, tmp_path):  # noqa: F8
         for robot in sim_params["robots"]:
             page.get_by_role("tab", name=robot).wait_for()
         page.wait_for_timeout(4000)
-        pixels = scene_pixels(page)
         page.screenshot(path=str(screenshot_dir(tmp_path) / "dashboard_two_robots.png"))
-        coloured = (pixels.max(axis=2) - pixels.min(axis=2)) > 24
-        columns = np.flatnonzero(coloured.mean(axis=0) > 0.002)
-        assert len(columns), "nothing drawn"
-        gaps = np.diff(columns)
-        print(f"coloured columns {columns.min()}..{columns.max()}, widest gap {gaps.max()} px")
-        # two robots side by side: two groups of coloured columns with space between them
-        assert gaps.max() > 15, "one blob: not both robots drawn apart"
+        masks = {robot: robot_mask(page, robot) for robot in sim_params["robots"]}
+        shares = {robot: float(np.mean(m)) for robot, m in masks.items()}
+        overlap = float(np.mean(masks["iiwa"] & masks["arm"]))
+        print(f"drawn: {shares}, overlap {overlap:.4f}")
+        # each robot draws pixels of its own (> ~500 of the ~10⁶): the iiwa is small beside
+        # the 2 m arm, with both in view
+        assert min(shares.values()) > 0.0005, shares
+        assert overlap < 0.2 * min(shares.values()), overlap
         assert outside == [], outside

@@ -144,3 +144,27 @@ def test_robots_and_controllers_are_found_from_topic_names_and_types():
     assert graph.split_name("/ctl") == ("ctl", "/")
     assert graph.parameter_prefix("/arm", ["iiwa", "arm"]) == "arm."
     assert graph.parameter_prefix("", []) == ""
+
+
+def test_the_camera_looks_at_the_robots_and_sees_every_corner():
+    from joint_space_control.dashboard.page import frame_camera
+
+    boxes = [
+        (np.array([-0.2, -0.2, 0.0]), np.array([0.2, 0.2, 1.3])),
+        (np.array([2.0, -0.1, 0.0]), np.array([4.2, 0.1, 0.2])),
+    ]
+    position, look_at = frame_camera(boxes)
+    assert np.allclose(look_at, [2.0, 0.0, 0.65])
+    axis = (look_at - position) / np.linalg.norm(look_at - position)
+    corners = [
+        np.array([x, y, z])
+        for lo, hi in boxes
+        for x in (lo[0], hi[0])
+        for y in (lo[1], hi[1])
+        for z in (lo[2], hi[2])
+    ]
+    for corner in corners:  # within viser's 50° vertical field of view, in front
+        ray = corner - position
+        angle = np.degrees(np.arccos(ray @ axis / np.linalg.norm(ray)))
+        assert angle < 25.0 + 1e-9, (corner, angle)
+    assert position[2] > look_at[2]  # from above
