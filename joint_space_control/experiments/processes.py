@@ -33,6 +33,7 @@ EXECUTABLES = {
     "inverse_dynamics_controller": "joint_space_control.nodes.inverse_dynamics_controller",
     "recorder": "joint_space_control.nodes.recorder",
     "trajectory_generator": "joint_space_control.nodes.trajectory_generator",
+    "dashboard": "joint_space_control.nodes.dashboard",
 }
 
 
