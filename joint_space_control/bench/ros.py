@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
+from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +40,46 @@ CONTROLLER_PARAMS = {
 }
 #: Set-point of every run: a step of 0.3 rad on every joint.
 STEP = 0.3
+#: What runs beside a loop while it is measured (bench.dashboard: the dashboard and a
+#: browser on its page): called with the run's processes once the loop is connected and
+#: paused, entered right before the resume and left after the measurement. What it yields
+#: has ``ready(check)``, called once the loop runs (it returns when what runs beside is in
+#: its steady state), and ``start()``, called at the mark the measurement starts from.
+Beside = Callable[[ProcessGroup], AbstractContextManager[Any]]
+#: The counters of ``total.*`` that :func:`_since` takes the difference of.
+_COUNTERS = ("ticks", "late", "too_late")
+
+
+def _beside(beside: Beside | None, group: ProcessGroup) -> AbstractContextManager[Any]:
+    return nullcontext() if beside is None else beside(group)
+
+
+def _mark(
+    observer: Observer, side: Any, node_name: str, check: Callable[[], None]
+) -> dict[str, float | str] | None:
+    """With something beside the loop: once it is ready, the node's next diagnostics (the
+    mark the measurement counts from); None without."""
+    if side is None:
+        return None
+    side.ready(check)
+    observer.spin_for(0.5, check)  # what queued up meanwhile
+    observer.latest.pop(f"{node_name}: control loop", None)  # a fresh one
+    mark = observer.wait_for_total(node_name, "total.seconds", 0.0, check, 30.0)
+    side.start()
+    return mark
+
+
+def _since(mark: Mapping[str, Any] | None, status: dict[str, Any]) -> dict[str, Any]:
+    """``status`` with its counters, seconds and rate since ``mark`` (the percentiles
+    stay those since the first tick)."""
+    if mark is None:
+        return status
+    out = dict(status)
+    for key in _COUNTERS:
+        out[f"total.{key}"] = float(status[f"total.{key}"]) - float(mark[f"total.{key}"])
+    out["total.seconds"] = float(status["total.seconds"]) - float(mark["total.seconds"])
+    out["total.rate_hz"] = out["total.ticks"] / out["total.seconds"]
+    return out
 
 
 def joints_of(robot: str) -> tuple[str, ...]:
@@ -103,10 +144,19 @@ def _summary(status: Mapping[str, Any], keys: Sequence[str]) -> dict[str, float]
 
 
 def lockstep(
-    workdir: Path, robot: str, laws: Sequence[str], seconds: float, log: Callable[[str], None]
+    workdir: Path,
+    robot: str,
+    laws: Sequence[str],
+    seconds: float,
+    log: Callable[[str], None],
+    controller_params: Mapping[str, Any] | None = None,
+    beside: Beside | None = None,
 ) -> list[dict[str, Any]]:
     """Lockstep throughput of sim_bridge + each law's controller (two processes) on
-    ``robot``: ``seconds`` of wall time from the first tick, measured by the controller."""
+    ``robot``: ``seconds`` of wall time from the first tick, measured by the controller.
+    ``controller_params``: added to each controller's (``use_sim_time``); ``beside``: what
+    runs beside the loop during each measurement (:data:`Beside`; the figures are then
+    counted from its mark: the rate, ticks and seconds, not the percentiles)."""
     joints = joints_of(robot)
     results = []
     with lease_domain() as lease, ProcessGroup(workdir, lease.domain_id) as group:
@@ -120,16 +170,30 @@ def lockstep(
                 controller = _controller(law)
                 log(f"lockstep {robot} {law}: {seconds:g} s")
                 node = group.start(
-                    controller, {"robot": robot, "trigger": "state", **CONTROLLER_PARAMS[law]}
+                    controller,
+                    {
+                        "robot": robot,
+                        "trigger": "state",
+                        **CONTROLLER_PARAMS[law],
+                        **(controller_params or {}),
+                    },
                 )
                 observer.wait_for_loop(group.check_alive)
                 observer.send_setpoint(joints, STEP)
-                observer.trigger("/sim_bridge/resume", group.check_alive)
-                status = observer.wait_for_total(
-                    controller, "total.seconds", seconds, group.check_alive, 60 + 20 * seconds
-                )
-                sim = observer.status("sim_bridge") or {}
-                observer.trigger("/sim_bridge/pause", group.check_alive)
+                with _beside(beside, group) as side:
+                    observer.trigger("/sim_bridge/resume", group.check_alive)
+                    mark = _mark(observer, side, controller, group.check_alive)
+                    since = float(mark["total.seconds"]) if mark else 0.0
+                    status = observer.wait_for_total(
+                        controller,
+                        "total.seconds",
+                        since + seconds,
+                        group.check_alive,
+                        60 + 20 * seconds,
+                    )
+                    status = _since(mark, status)
+                    sim = observer.status("sim_bridge") or {}
+                    observer.trigger("/sim_bridge/pause", group.check_alive)
                 node.stop()
                 del group.nodes[controller]
                 results.append(
@@ -171,11 +235,14 @@ def realtime(
     log: Callable[[str], None],
     thread_priority: int = 50,
     load: str = "quiet",
+    controller_params: Mapping[str, Any] | None = None,
+    beside: Beside | None = None,
 ) -> dict[str, Any]:
     """sim_bridge in realtime mode at 1 kHz with the controller answering every state, for
     ``seconds`` from the resume: the simulator's schedule, jitter and latency, the brakes,
     and the scheduling the realtime threads got (``thread_priority`` asked of both nodes;
-    ``load`` only labels the row: the caller makes it)."""
+    ``load`` only labels the row: the caller makes it). ``controller_params`` and ``beside``
+    as for :func:`lockstep`."""
     controller = _controller(law)
     joints = joints_of(robot)
     log(f"realtime {robot} {law}, {load}, thread_priority {thread_priority}: {seconds:g} s")
@@ -197,17 +264,26 @@ def realtime(
                 "trigger": "state",
                 "thread_priority": thread_priority,
                 **CONTROLLER_PARAMS[law],
+                **(controller_params or {}),
             },
         )
         observer = Observer(lease.domain_id)
         try:
             observer.wait_for_loop(group.check_alive)
             observer.send_setpoint(joints, STEP)
-            observer.trigger("/sim_bridge/resume", group.check_alive)
-            sim = observer.wait_for_total(
-                "sim_bridge", "total.seconds", seconds, group.check_alive, 60 + 3 * seconds
-            )
-            ctrl = observer.status(controller) or {}
+            with _beside(beside, group) as side:
+                observer.trigger("/sim_bridge/resume", group.check_alive)
+                mark = _mark(observer, side, "sim_bridge", group.check_alive)
+                since = float(mark["total.seconds"]) if mark else 0.0
+                sim = observer.wait_for_total(
+                    "sim_bridge",
+                    "total.seconds",
+                    since + seconds,
+                    group.check_alive,
+                    60 + 3 * seconds,
+                )
+                sim = _since(mark, sim)
+                ctrl = observer.status(controller) or {}
         finally:
             observer.close()
     ticks = float(sim["total.ticks"])

@@ -5,7 +5,9 @@ Sections (all by default): ``compute`` (laws and Pinocchio calls per tick, no RO
 (sim_bridge + controller over ROS 2), ``realtime`` (1 kHz on the wall clock, with the
 machine's floor: a bare Python thread paced the same way), ``analyze`` (``jsc analyze``
 per million messages) and ``sweep`` (runs per minute of a fixed sweep on a Dask LocalCluster
-of 1 and then 2 workers, and where a run's wall time goes; skipped by ``--quick``).
+of 1 and then 2 workers, and where a run's wall time goes; skipped by ``--quick``) and
+``dashboard`` (lockstep steps/s and realtime on-time without and with the dashboard and its
+page open in a browser, in alternating pairs, with each process's CPU; bench.dashboard).
 Ping-pong and lockstep alternate in ``rounds`` (each row is the median round, ``rounds``
 keeps them all). ``ratios`` and ``goals`` are derived; the CPU time
 the hypervisor took during each part (``cpu_steal_fraction``) says how much the machine
@@ -29,7 +31,16 @@ from joint_space_control.bench import compute
 from joint_space_control.bench.load import cpu_hog
 from joint_space_control.json_values import jsonable
 
-SECTIONS = ("compute", "in_process", "pingpong", "lockstep", "realtime", "analyze", "sweep")
+SECTIONS = (
+    "compute",
+    "in_process",
+    "pingpong",
+    "lockstep",
+    "realtime",
+    "analyze",
+    "sweep",
+    "dashboard",
+)
 #: The realtime runs (and their floors): quiet and with a CPU hog on every core
 #: (bench.load), each at normal scheduling and at the nodes' default thread_priority.
 REALTIME_PRIORITIES = (0, 50)
@@ -60,6 +71,10 @@ class Options:
     sweep_runs: int = 6  # runs of the sweep (0: the section is skipped)
     sweep_seconds: float = 1.0  # simulated time of each
     sweep_workers: tuple[int, ...] = (1, 2)  # LocalCluster sizes, in this order
+    # the dashboard beside the loop: pairs without / with, each run this long
+    dashboard_pairs: int = 3
+    dashboard_lockstep_seconds: float = 5.0
+    dashboard_realtime_seconds: float = 10.0
 
     @classmethod
     def quick(cls) -> Options:
@@ -73,6 +88,9 @@ class Options:
             analyze_seconds=0.5,
             floor_seconds=1.0,
             sweep_runs=0,  # minutes, not seconds: `jsc bench --sections sweep` measures it
+            dashboard_pairs=1,
+            dashboard_lockstep_seconds=1.0,
+            dashboard_realtime_seconds=1.0,
         )
 
 
@@ -218,6 +236,20 @@ def run(
             )
         else:
             result["sweep"] = {"skipped": "--quick: run `jsc bench --sections sweep`"}
+    if "dashboard" in sections:
+        from joint_space_control.bench import dashboard
+
+        log("dashboard: the loop without and with the dashboard and its page open")
+        result["dashboard"] = dashboard.side_by_side(
+            out,
+            options.dashboard_pairs,
+            options.dashboard_lockstep_seconds,
+            options.dashboard_realtime_seconds,
+            options.realtime_robot,
+            options.realtime_law,
+            log,
+            measured,
+        )
     result["ratios"] = ratios(result)
     result["goals"] = goals(result)
     result["duration_s"] = time.monotonic() - started
@@ -305,6 +337,8 @@ def goals(result: dict[str, Any]) -> list[dict[str, Any]]:
         met = None if value is None or math.isnan(value) else bool(ok(value))
         return {"goal": name, "measured": value, "met": met}
 
+    from joint_space_control.bench.dashboard import goals as dashboard_goals
+
     return [
         goal(
             "inverse dynamics on iiwa <= 20 us median per tick",
@@ -346,6 +380,7 @@ def goals(result: dict[str, Any]) -> list[dict[str, Any]]:
             hog["brakes"] if hog else None,
             lambda v: v == 0,
         ),
+        *(goal(*row) for row in dashboard_goals(result.get("dashboard"))),
     ]
 
 
@@ -463,6 +498,10 @@ def format_table(result: dict[str, Any]) -> str:
         from joint_space_control.bench.sweep import format_sweep
 
         lines += format_sweep(result["sweep"])
+    if "dashboard" in result:
+        from joint_space_control.bench.dashboard import format_dashboard
+
+        lines += format_dashboard(result["dashboard"])
     steal = {k: v for k, v in result.get("cpu_steal_fraction", {}).items() if v is not None}
     if steal:
         lines += [

@@ -12,8 +12,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "bench",
         help="measure the control loop: law compute, lockstep over ROS 2 vs ping-pong and "
-        "in-process, realtime 1 kHz, jsc analyze, sweep throughput on 1 and 2 Dask workers; "
-        "prints a table, writes bench.json",
+        "in-process, realtime 1 kHz, jsc analyze, sweep throughput on 1 and 2 Dask workers, "
+        "the loop without and with the dashboard's page open; prints a table, writes bench.json",
     )
     p.add_argument("--out", type=Path, default=Path("out/bench"), help="output dir")
     p.add_argument("--quick", action="store_true", help="short runs (< 1 min in all)")

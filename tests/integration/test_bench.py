@@ -19,22 +19,32 @@ pytestmark = [pytest.mark.integration, pytest.mark.realtime]
 LAWS = ("pd_gravity", "inverse_dynamics")
 
 
-def test_quick_bench_writes_every_section(tmp_path):
-    out = tmp_path / "bench"
+#: Sections with a test of their own below (they start a browser: minutes, not seconds).
+APART = ("dashboard",)
+
+
+def _bench(out, *args, timeout=240):
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
-    result = subprocess.run(
-        [sys.executable, "-m", "joint_space_control.cli.main", "bench", "--quick", "--out", out],
+    return subprocess.run(
+        [sys.executable, "-m", "joint_space_control.cli.main", "bench", "--quick", "--out", out]
+        + list(args),
         capture_output=True,
         text=True,
-        timeout=240,
+        timeout=timeout,
         env=env,
     )
+
+
+def test_quick_bench_writes_every_section(tmp_path):
+    out = tmp_path / "bench"
+    sections = [s for s in SECTIONS if s not in APART]
+    result = _bench(out, "--sections", ",".join(sections))
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert "goals:" in result.stdout and (out / "bench.txt").read_text() in result.stdout
 
     data = json.loads((out / "bench.json").read_text())
     derived = {"machine", "versions", "ratios", "goals", "realtime_floor", "cpu_steal_fraction"}
-    assert set(SECTIONS) | derived <= set(data)
+    assert set(sections) | derived <= set(data)
     assert data["machine"]["cpu"] and data["machine"]["cores"] >= 1
     for package in ("python", "rclpy", "pinocchio", "pybullet", "numpy"):
         assert data["versions"][package], package
@@ -67,9 +77,11 @@ def test_quick_bench_writes_every_section(tmp_path):
     for floor in data["realtime_floor"]:
         assert {"lateness", "on_time_fraction", "policy"} <= set(floor)
     assert data["analyze"]["messages"] > 0 and data["analyze"]["seconds_per_million_messages"]
-    assert len(data["goals"]) == 8
+    assert len(data["goals"]) == 10
     under_hog = [g for g in data["goals"] if "CPU hog" in g["goal"]]
-    assert all(g["met"] is not None for g in data["goals"] if g not in under_hog)
+    apart = [g for g in data["goals"] if g["goal"].startswith("dashboard")]
+    assert len(apart) == 2 and all(g["met"] is None for g in apart)
+    assert all(g["met"] is not None for g in data["goals"] if g not in under_hog + apart)
     # measured exactly when the prioritised case ran at SCHED_FIFO
     assert all((g["met"] is not None) == data["fifo_permitted"] for g in under_hog)
 
@@ -77,3 +89,47 @@ def test_quick_bench_writes_every_section(tmp_path):
     ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert str(out) not in ps  # node processes (their parameter files are under out/)
     assert "parent = int(sys.argv[1])" not in ps  # the CPU hogs
+
+
+def test_quick_dashboard_section_pairs_the_loop_without_and_with_the_page(tmp_path):
+    out = tmp_path / "bench"
+    result = _bench(out, "--sections", "dashboard", timeout=400)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert "dashboard beside the loop" in result.stdout
+
+    data = json.loads((out / "bench.json").read_text())
+    section = data["dashboard"]
+    page = section["page"]
+    assert page == (section["page_missing"] is None)
+    assert section["pairs"] == 1
+    runs = section["runs"]
+    assert [(r["kind"], r["dashboard"]) for r in runs] == [
+        ("lockstep", False),
+        ("lockstep", True),
+        ("realtime", False),
+        ("realtime", True),
+    ]
+    ls, rt = section["lockstep"], section["realtime"]
+    assert (ls["robot"], ls["law"], ls["use_sim_time"]) == ("planar_2dof", "pd_gravity", True)
+    assert ls["without_steps_per_s"] > 0 and ls["with_steps_per_s"] > 0
+    assert ls["ratio"] == pytest.approx(ls["with_steps_per_s"] / ls["without_steps_per_s"])
+    for key in ("without_on_time_fraction", "with_on_time_fraction"):
+        assert 0.0 <= rt[key] <= 1.0, key
+    assert rt["drop_points"] == pytest.approx(
+        100 * (rt["without_on_time_fraction"] - rt["with_on_time_fraction"])
+    )
+    # the CPU of every process over each measurement: the loop's two, and beside it the
+    # dashboard and (with a page) Chromium and playwright
+    for kind, loop in (("lockstep", "pd_gravity_controller"), ("realtime", "inverse_dynamics")):
+        without, with_ = (section["cpu_seconds"][kind][k] for k in ("without", "with"))
+        assert without["wall_s"] > 0 and with_["wall_s"] > 0
+        assert "dashboard_s" not in without and "chromium_s" not in without
+        assert with_["dashboard_s"] > 0
+        assert ("chromium_s" in with_) == page and ("playwright_s" in with_) == page
+        assert any(k.startswith(loop) for k in with_) and "sim_bridge_s" in with_
+    goals = [g for g in data["goals"] if g["goal"].startswith("dashboard")]
+    assert len(goals) == 2 and all((g["met"] is not None) == page for g in goals)
+
+    ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
+    assert str(out) not in ps  # node processes (their parameter files are under out/)
+    assert "joint_space_control.bench.browser" not in ps  # the page's process
