@@ -21,7 +21,8 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-#: Chromium's switches: software WebGL on SwiftShader, no sandbox (tests/integration/browser.py).
+#: Chromium's switches: software WebGL on SwiftShader, no sandbox (why: the docstring of
+#: tests/integration/browser.py, which launches the tests' browser with these too).
 CHROMIUM_ARGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox")
 #: The page is connected once this text is on it (the server's label) and a canvas exists.
 CONNECTED_TEXT = "joint_space_control"

@@ -24,11 +24,12 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
+# Chromium's switches (software WebGL on SwiftShader, no sandbox: see the module docstring),
+# one list for the tests and the bench
+from joint_space_control.bench.browser import CHROMIUM_ARGS
+
 if TYPE_CHECKING:
     from playwright.sync_api import Browser, Playwright
-
-#: Chromium's switches: software WebGL on SwiftShader, no sandbox (see the module docstring).
-CHROMIUM_ARGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox")
 
 
 def chromium_path() -> str:
