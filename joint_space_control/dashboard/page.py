@@ -308,7 +308,12 @@ class RobotPanel:
         self._cfg_index = {name: k for k, name in enumerate(names)}
         self._cfg = np.zeros(len(names))
         self._urdf.update_cfg(self._cfg)
-        if urdf.scene is not None and not urdf.scene.is_empty:
+        if urdf.scene is None or urdf.scene.is_empty:
+            self.info.notes = (
+                *self.info.notes,
+                "nothing to draw: the description has no visual geometry that could be loaded",
+            )
+        else:
             lo, hi = (np.asarray(b, dtype=float) for b in urdf.scene.bounds)
             corners = np.array(
                 [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]

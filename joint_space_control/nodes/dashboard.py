@@ -333,6 +333,7 @@ class Dashboard(Node):
             values = self._plant_values(robot)
             spec = params.robot_spec(values, node=self)
             urdf_path = spec.urdf_path
+            notes += spec.warnings  # meshes not found: said on the page, where they are missing
             base_position = tuple(float(v) for v in values["base_position"] or (0.0, 0.0, 0.0))
             base_rpy = tuple(float(v) for v in values["base_rpy"] or (0.0, 0.0, 0.0))
         except (ValueError, TimeoutError, KeyError, TypeError) as err:
