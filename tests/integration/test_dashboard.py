@@ -148,15 +148,18 @@ def get_parameter(rig: Rig, node: str, name: str):  # noqa: F811
     return parameter_value_to_python(future.result().values[0])
 
 
-def stopped_time(rig: Rig, quiet: float = 1.0, timeout: float = 30.0) -> float:  # noqa: F811
-    """The simulated time once the joint states stop advancing: the probe takes every
-    state the plant published (a loaded machine leaves it behind), so wait until it holds
-    still for ``quiet`` seconds."""
-    last = rig.probe.latest_time()
+def stopped_time(rig: Rig, timeout: float = 30.0) -> float:  # noqa: F811
+    """The simulated time once the plant has stopped it, as the plant says in its own
+    diagnostics (published on the steady clock every second, paused or not): the same
+    ``sim_time_s`` in statuses 2.5 s apart. The probe's joint states are no witness of
+    that: they queue behind a loaded machine, so a second without one proves nothing and
+    a burst of old ones may arrive after the pause (a CI run saw both)."""
+    status = "sim_bridge: control loop"
     deadline = time.monotonic() + timeout
+    last = float(rig.diagnostics("sim_bridge", lambda s: True)["sim_time_s"])
     while time.monotonic() < deadline:
-        rig.probe.spin_for(quiet)
-        now = rig.probe.latest_time()
+        rig.probe.spin_for(2.5)
+        now = float(rig.probe.wait_for_diagnostics([status])[status]["sim_time_s"])
         if now == last:
             return now
         last = now
@@ -247,8 +250,13 @@ def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tm
         # pause stops simulated time, resume runs it again
         page.get_by_role("button", name="pause").click()
         paused_at = stopped_time(rig)
+        # the probe catches up with the plant's last state, and nothing comes after it
+        rig.probe.spin_until(
+            lambda: rig.probe.latest_time() >= paused_at - 0.0105, 30.0, "the last state"
+        )
+        caught_up = rig.probe.latest_time()
         rig.probe.spin_for(1.5)
-        assert rig.probe.latest_time() == paused_at
+        assert rig.probe.latest_time() == caught_up <= paused_at + 1e-9
         page.get_by_role("button", name="resume").click()
         rig.probe.spin_until(
             lambda: rig.probe.latest_time() > paused_at + 0.5, 10.0, "time running again"
