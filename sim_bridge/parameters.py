@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Mapping
 from typing import Any
 
-from joint_space_control.ros import parameters as params
-from joint_space_control.ros import realtime_threads
+from joint_space_control.control import parameters as params
 from sim_bridge.wrench import PROFILES
 
 MODES = ("realtime", "lockstep")
@@ -24,7 +24,7 @@ POSITIVE = {"minimum": 0.0, "exclusive": True}
 NONNEGATIVE = {"minimum": 0.0}
 
 #: The world's parameters (one set for every robot in it).
-WORLD_PARAMETERS = realtime_threads.PARAMETERS + (
+WORLD_PARAMETERS = params.REALTIME_PARAMETERS + (
     params.ParamSpec("mode", "realtime", "Plant timing", read_only=True, choices=MODES),
     params.ParamSpec(
         "physics_rate",
@@ -283,3 +283,26 @@ def robot_values(values: params.ParamValues, name: str) -> params.ParamValues:
     return params.ParamValues(
         ROBOT_OWN, {spec.name: values[key + spec.name] for spec in ROBOT_OWN}
     )
+
+
+def lockstep_period(values: params.ParamValues) -> tuple[int, int]:
+    """(physics steps per published state, physics step [ns]) of the world's values:
+    ``physics_rate`` must be an integer multiple of ``publish_rate`` (ValueError)."""
+    physics_rate = params.value(values, "physics_rate")
+    publish_rate = params.value(values, "publish_rate")
+    substeps = round(physics_rate / publish_rate)
+    if substeps < 1 or abs(substeps * publish_rate - physics_rate) > 1e-6 * physics_rate:
+        raise ValueError("physics_rate must be an integer multiple of publish_rate")
+    return substeps, round(1e9 / physics_rate)
+
+
+def flat(given: Mapping[str, Any]) -> dict[str, Any]:
+    """Values as a params file nests them (a robot's under its name) flattened to the
+    names ROS gives them (``arm: {robot: iiwa}`` → ``arm.robot``)."""
+    out: dict[str, Any] = {}
+    for key, value in given.items():
+        if isinstance(value, Mapping):
+            out.update({f"{key}.{k}": v for k, v in flat(value).items()})
+        else:
+            out[key] = value
+    return out

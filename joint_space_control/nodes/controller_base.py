@@ -76,13 +76,21 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
-from joint_space_control.control.controller import Controller, Step
-from joint_space_control.control.sampling import DEFAULT_CUTOFF, Sampling, VelocitySource
-from joint_space_control.laws.gains import DEFAULT_OMEGA_N, DEFAULT_ZETA, GainChoice, choose_gains
+from joint_space_control.control.configure import (  # noqa: F401  (re-exported)
+    COMMON_PARAMETERS,
+    MODEL_PARAMETERS,
+    TRIGGERS,
+    ControllerKind,
+    config_document,
+    model_perturbation,
+    sampling,
+)
+from joint_space_control.control.controller import Step
+from joint_space_control.control.sampling import VelocitySource
+from joint_space_control.laws.gains import GainChoice
 from joint_space_control.laws.limits import beyond_bound
-from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
+from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.ros import parameters as params
-from joint_space_control.ros import realtime_threads
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
 from joint_space_control.ros.loop_statistics import LoopStatistics
@@ -102,12 +110,16 @@ from joint_space_control.ros.messages import (
 from joint_space_control.ros.plant_mode import PlantModeWatcher
 from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.reference_worker import ReferenceBuilder
-from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
+from joint_space_control.ros.wire import (
+    Float64ArrayImage,
+    JointStateImage,
+    JointStateReader,
+    fill_images,
+)
 from joint_space_control.throttle import ThrottledLog
 from joint_space_control.time_jumps import BackwardJumps
 from joint_space_control.trajectories.reference import Trajectory
 
-TRIGGERS = ("auto", "timer", "state")
 #: The safety counters of a controller (on /diagnostics; docs/safety.md).
 COUNTERS = (
     "rejected.joint_states",
@@ -136,163 +148,14 @@ NO_VELOCITY = (
     "backward_difference or filtered_difference to estimate it)"
 )
 
-COMMON_PARAMETERS = (
-    params.ROBOT_PARAMETERS
-    + realtime_threads.PARAMETERS
-    + (
-        params.ParamSpec(
-            "rate",
-            1000.0,
-            "Control rate 1/T_s: the timer's with trigger=timer; with trigger=state a torque is "
-            "computed at the states on a 1/rate grid and held over the states in between",
-            read_only=True,
-            unit="Hz",
-            minimum=0.0,
-            exclusive=True,
-            maximum=1e5,
-        ),
-        params.ParamSpec(
-            "trigger",
-            "auto",
-            "auto: follow the plant (the 'mode' parameter of the joint_states publisher: "
-            "lockstep -> state, anything else -> timer); timer: command at 'rate' from the "
-            "latest state; state: answer every joint state once (lockstep)",
-            read_only=True,
-            choices=TRIGGERS,
-        ),
-        params.ParamSpec(
-            "state_timeout",
-            0.1,
-            "Stop commanding when no joint state arrived for this long (wall time at receipt)",
-            unit="s",
-            minimum=0.0,
-            exclusive=True,
-            maximum=60.0,
-        ),
-        params.ParamSpec(
-            "kp",
-            0.0,
-            "Proportional gain K_P; 0: not given (see omega_n), else > 0 on every joint",
-            dynamic=True,
-            unit="N·m/rad",
-            minimum=0.0,
-            maximum=1e6,
-        ),
-        params.ParamSpec(
-            "kd",
-            0.0,
-            "Derivative gain K_D; only with kp > 0",
-            dynamic=True,
-            unit="N·m·s/rad",
-            minimum=0.0,
-            maximum=1e6,
-        ),
-        params.ParamSpec(
-            "omega_n",
-            0.0,
-            "Natural frequency ω_n: gains from omega_n/zeta (over kp/kd); 0: not given (kp/kd "
-            f"if kp > 0, else ω_n = {DEFAULT_OMEGA_N:g} rad/s), else > 0 on every joint",
-            dynamic=True,
-            unit="rad/s",
-            minimum=0.0,
-            maximum=1000.0,
-        ),
-        params.ParamSpec(
-            "zeta",
-            DEFAULT_ZETA,
-            "Damping ratio ζ (with omega_n or the default)",
-            dynamic=True,
-            minimum=0.0,
-            maximum=10.0,
-        ),
-        # The controller's own model (B̂, Ĉ, F̂, ĝ) can differ from the plant on purpose.
-        params.ParamSpec(
-            "model_mass_scale",
-            1.0,
-            "Controller model: factor on the mass and inertia of the link each joint moves",
-            dynamic=True,
-            minimum=0.0,
-            exclusive=True,
-            maximum=10.0,
-        ),
-        params.ParamSpec(
-            "model_payload_mass",
-            0.0,
-            "Controller model: point mass at the last link's centre of mass",
-            unit="kg",
-            minimum=0.0,
-            maximum=1000.0,
-        ),
-        params.ParamSpec(
-            "model_friction",
-            0.0,
-            "Controller model: viscous friction F̂",
-            dynamic=True,
-            unit="N·m·s/rad",
-            minimum=0.0,
-            maximum=1e4,
-        ),
-        params.ParamSpec(
-            "model_gravity", True, "Controller model: false models no gravity (ĝ ≡ 0)"
-        ),
-        params.REJECT_FACTOR,
-        params.ParamSpec(
-            "velocity_source",
-            VelocitySource.AUTO.value,
-            "q̇ used by the law and reported on ~/state: auto (measured when the state carries "
-            "a velocity, else filtered_difference) | measured (states without one are rejected) "
-            "| backward_difference | filtered_difference (from the positions' stamps)",
-            choices=tuple(source.value for source in VelocitySource),
-        ),
-        params.ParamSpec(
-            "velocity_cutoff",
-            DEFAULT_CUTOFF,
-            "Cutoff f_c of the filtered difference",
-            unit="Hz",
-            minimum=0.0,
-            exclusive=True,
-            maximum=1e5,
-        ),
-        params.ParamSpec(
-            "reference_derivatives",
-            True,
-            "false: q̇_d = q̈_d = 0 whatever the reference (regulation form r = K_P q_d)",
-        ),
-    )
-)
-MODEL_PARAMETERS = ("model_mass_scale", "model_payload_mass", "model_friction", "model_gravity")
-
-
-def sampling(values: params.ParamValues, trigger: str, rate: float) -> Sampling:
-    """How the controller samples, from parameter values: the control period is 1/rate when
-    it answers states (trigger ``state``), else the timer's (the core computes every call)."""
-    return Sampling(
-        VelocitySource.parse(params.value(values, "velocity_source")),
-        params.value(values, "velocity_cutoff"),
-        params.value(values, "reference_derivatives"),
-        1.0 / rate if trigger == "state" else 0.0,
-    )
-
-
-def model_perturbation(values: params.ParamValues) -> ModelPerturbation:
-    """The controller model's deliberate differences from the URDF, from parameter values."""
-    return ModelPerturbation(
-        friction=tuple(params.value(values, "model_friction").tolist()),
-        mass_scale=tuple(params.value(values, "model_mass_scale").tolist()),
-        payload_mass=params.value(values, "model_payload_mass"),
-        gravity=params.value(values, "model_gravity"),
-    )
-
 
 class JointController(Node):
     """Base class of the controller nodes (not a node on its own)."""
 
-    #: Extra parameters of the concrete controller.
-    LAW_PARAMETERS: tuple[params.ParamSpec, ...] = ()
-    #: The executable (and default node name) of the concrete controller.
-    EXECUTABLE = ""
-    #: The controller object the node drives (:mod:`joint_space_control.control`).
-    CORE: type[Controller] = Controller
+    #: The concrete controller: its executable (and default node name), its core (the
+    #: object the node drives), its parameters and configuration
+    #: (:mod:`joint_space_control.control.configure`).
+    KIND: ControllerKind
 
     @property
     def config(self) -> Any:
@@ -301,7 +164,7 @@ class JointController(Node):
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        self._specs = COMMON_PARAMETERS + self.LAW_PARAMETERS
+        self._specs = self.KIND.parameters
         params.declare(self, self._specs)
         values = params.current_values(self, self._specs)
         self.model = params.robot_model(values, model_perturbation(values), self)
@@ -316,7 +179,7 @@ class JointController(Node):
         self.trigger = "pending" if self.trigger_parameter == "auto" else self.trigger_parameter
         self._trigger_reason = ""
         # the controller itself (no ROS): configuration, state, step
-        self.core = self.CORE(
+        self.core = self.KIND.core(
             self.build_config(values, self.model),
             self.effort_limits,
             sampling(values, self.trigger, rate),
@@ -436,25 +299,16 @@ class JointController(Node):
             return text + ", designed at the first measured configuration"
         return text + f": kp={gains.kp.tolist()}, kd={gains.kd.tolist()}"
 
-    # -- to be provided by the concrete controller ------------------------------------
+    # -- the concrete controller's -----------------------------------------------------
     def build_config(self, values: dict[str, Any], model: RobotModel) -> Any:
-        """An immutable configuration with at least ``gains`` (:class:`PDGains`) and the
-        controller ``model`` it computes with."""
-        raise NotImplementedError
+        """The immutable configuration (``gains`` and the controller ``model``) from
+        parameter values (:func:`~joint_space_control.control.configure.ControllerKind.
+        config_from`; ValueError with the reason)."""
+        return self.KIND.config_from(values, model)
 
     def law_name(self, config: Any) -> str:
         """The law in force, as named in ``~/config`` (README)."""
-        raise NotImplementedError
-
-    def gain_choice(self, values: dict[str, Any]) -> GainChoice:
-        """The validated gain parameters and their precedence (laws.gains.choose_gains)."""
-        return choose_gains(
-            self.n,
-            params.value(values, "kp", self.n),
-            params.value(values, "kd", self.n),
-            params.value(values, "omega_n", self.n),
-            params.value(values, "zeta", self.n),
-        )
+        return self.KIND.law_name(config)
 
     # -- parameters --------------------------------------------------------------------
     def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
@@ -530,36 +384,18 @@ class JointController(Node):
         return self.model.with_perturbation(model_perturbation(values))
 
     def _publish_config(self, values: dict[str, Any]) -> None:
-        lower, upper = self.model.position_limits
-        config = self.config
-        choice: GainChoice = config.choice
-        gains = config.gains
-        design = {}
-        if choice.designed:
-            design = {"omega_n": choice.omega_n, "zeta": choice.zeta}
-            if self.core.GAINS_NEED_CONFIGURATION:
-                design["gains_configuration"] = self.core.q0
         self._config_pub.publish(
             config_message(
-                {
-                    "node": self.get_fully_qualified_name(),
-                    "executable": self.EXECUTABLE,
-                    "law": self.law_name(config),
-                    "robot": self._robot_name,
-                    "joints": list(self.joints),
-                    "rate": self._rate,
-                    "control_period": 1.0 / self._rate,
-                    "trigger": self.trigger,
-                    "trigger_parameter": self.trigger_parameter,
-                    "effort_limits": self.effort_limits,
-                    "position_limits": [[lo, hi] for lo, hi in zip(lower, upper, strict=True)],
-                    # null until designed at the first measured configuration
-                    "kp": None if gains is None else gains.kp,
-                    "kd": None if gains is None else gains.kd,
-                    "gains_from": choice.source,
-                    **design,
-                    "parameters": values,
-                }
+                config_document(
+                    self.KIND,
+                    self.core,
+                    self.model,
+                    values,
+                    node=self.get_fully_qualified_name(),
+                    rate=self._rate,
+                    trigger=self.trigger,
+                    trigger_parameter=self.trigger_parameter,
+                )
             )
         )
 
@@ -839,39 +675,3 @@ class JointController(Node):
             )
             self._publish_config(self._values)
         return sent
-
-
-def fill_images(
-    command: JointStateImage,
-    state: Float64ArrayImage | None,
-    stamp_ns: int,
-    step: Step,
-) -> None:
-    """Write a step into the command image (effort, stamp of the state it answers) and, when
-    given, the ``~/state`` image (README "Controller state": q_d, q̇_d, q̈_d, q, q̇, e, ė,
-    τ feedback/model/gravity, τ before and after clamping), with the reference and the
-    state (q, q̇ measured or estimated) the law used."""
-    command.effort[:] = step.tau
-    command.set_stamp(stamp_ns)
-    if state is None:
-        return
-    ref, split, q, dq = step.ref, step.split, step.q, step.dq
-    data = state.data
-    data[0] = stamp_ns * 1e-9
-    np.concatenate(
-        (
-            ref.q,
-            ref.dq,
-            ref.ddq,
-            q,
-            dq,
-            ref.q - q,
-            ref.dq - dq,
-            split.feedback,
-            split.model,
-            split.gravity,
-            step.unclamped,
-            step.tau,
-        ),
-        out=data[1:],
-    )

@@ -11,21 +11,18 @@ Gains are per-joint ``omega_n``/``zeta`` (K_P = ω_n², K_D = 2ζω_n) when ``om
 (:func:`~joint_space_control.laws.gains.choose_gains`). The hatted model is the controller's
 own Pinocchio model of the URDF with the ``model_*`` perturbations. Everything can be
 changed while the node runs.
+
+The parameters and the configuration they give are ROS-free
+(:data:`~joint_space_control.control.configure.INVERSE_DYNAMICS`); this is the node around
+them.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from joint_space_control.control.inverse_dynamics import (
-    IDConfig,
-    InverseDynamicsController,
-    gains_from_choice,
-)
-from joint_space_control.laws.inverse_dynamics import ModelLaw
-from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.control.configure import INVERSE_DYNAMICS
 from joint_space_control.nodes.controller_base import JointController
-from joint_space_control.ros import parameters as params
 from joint_space_control.ros.node_main import run_node
 
 
@@ -33,31 +30,10 @@ class InverseDynamicsControllerNode(JointController):
     """The ROS wrapper of
     :class:`~joint_space_control.control.inverse_dynamics.InverseDynamicsController`."""
 
-    CORE = InverseDynamicsController
-    EXECUTABLE = "inverse_dynamics_controller"
-    LAW_PARAMETERS = (
-        params.ParamSpec(
-            "law",
-            "inverse_dynamics",
-            "inverse_dynamics (eq. 15) | feedforward_pd (eq. 17) | precomputed_feedforward",
-            choices=tuple(law.value for law in ModelLaw),
-        ),
-    )
+    KIND = INVERSE_DYNAMICS
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__(self.EXECUTABLE, **kwargs)
-
-    def build_config(self, values: dict[str, Any], model: RobotModel) -> IDConfig:
-        choice = self.gain_choice(values)
-        return IDConfig(
-            model,
-            gains_from_choice(choice, self.n),
-            ModelLaw.parse(params.value(values, "law")),
-            choice,
-        )
-
-    def law_name(self, config: IDConfig) -> str:
-        return config.law.value
+        super().__init__(self.KIND.executable, **kwargs)
 
 
 def main(args: list[str] | None = None) -> None:

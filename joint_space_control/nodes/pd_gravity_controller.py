@@ -16,68 +16,27 @@ gains.pd_gains_from_second_order`):
 so that each joint, about q₀, is a second-order loop with that ω_n and ζ whatever its
 inertia. They are designed again at the configuration measured after a restart, and at q₀
 when ω_n, ζ or the model parameters change; ``~/config`` shows the gains in force.
+
+The parameters and the configuration they give are ROS-free
+(:data:`~joint_space_control.control.configure.PD_GRAVITY`); this is the node around them.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from joint_space_control.control.pd_gravity import PDConfig, PDGravityController
-from joint_space_control.laws.gains import PDGains
-from joint_space_control.laws.pd_gravity import GravityCompensation
-from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.control.configure import PD_GRAVITY
 from joint_space_control.nodes.controller_base import JointController
-from joint_space_control.ros import parameters as params
 from joint_space_control.ros.node_main import run_node
 
 
 class PDGravityControllerNode(JointController):
     """The ROS wrapper of :class:`~joint_space_control.control.pd_gravity.PDGravityController`."""
 
-    CORE = PDGravityController
-    LAW_PARAMETERS = (
-        params.ParamSpec(
-            "gravity_compensation",
-            "full",
-            "Gravity term: full = g(q) | none = pure PD | desired = g(q_d)",
-            choices=tuple(mode.value for mode in GravityCompensation),
-        ),
-        params.ParamSpec(
-            "ki",
-            0.0,
-            "Integral gain K_I; anti-windup at the effort limits",
-            dynamic=True,
-            unit="N·m/(rad·s)",
-            minimum=0.0,
-            maximum=1e6,
-        ),
-        params.ParamSpec(
-            "gravity_estimate",
-            0.0,
-            "Constant torque u added to the law (iterative gravity estimation)",
-            dynamic=True,
-            unit="N·m",
-            minimum=-1e6,
-            maximum=1e6,
-        ),
-    )
-
-    EXECUTABLE = "pd_gravity_controller"
+    KIND = PD_GRAVITY
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__(self.EXECUTABLE, **kwargs)
-
-    def build_config(self, values: dict[str, Any], model: RobotModel) -> PDConfig:
-        n = self.n
-        choice = self.gain_choice(values)
-        ki = params.value(values, "ki", n)
-        gains = None if choice.designed else PDGains.build(n, choice.kp, choice.kd, ki)
-        mode = GravityCompensation.parse(params.value(values, "gravity_compensation"))
-        estimate = params.value(values, "gravity_estimate", n)
-        return PDConfig(model, gains, mode, estimate, choice, ki)
-
-    def law_name(self, config: PDConfig) -> str:
-        return "pd_gravity"  # the variant: gravity_compensation, ki in "parameters"
+        super().__init__(self.KIND.executable, **kwargs)
 
 
 def main(args: list[str] | None = None) -> None:

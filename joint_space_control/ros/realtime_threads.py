@@ -16,32 +16,8 @@ from joint_space_control.ros import parameters as params
 #: The executor thread's SCHED_FIFO priority beside realtime threads (configure_executor).
 EXECUTOR_PRIORITY = 1
 
-PARAMETERS = (
-    params.ParamSpec(
-        "thread_priority",
-        50,
-        "SCHED_FIFO priority (1-99) of the realtime threads when the system permits it "
-        "(else one warning and normal scheduling); 0: normal scheduling",
-        read_only=True,
-        minimum=0.0,
-        maximum=float(scheduling.MAX_PRIORITY),
-        step=1.0,
-    ),
-    params.ParamSpec(
-        "cpu_affinity",
-        [],
-        "CPUs the realtime threads may run on (empty: any the process may use)",
-        read_only=True,
-        kind="numbers",
-        empty_ok=True,
-    ),
-    params.ParamSpec(
-        "lock_memory",
-        False,
-        "Lock the process's memory, present and future, in RAM (mlockall)",
-        read_only=True,
-    ),
-)
+#: The scheduling parameters (declared beside the others, ROS-free).
+PARAMETERS = params.REALTIME_PARAMETERS
 
 
 class RealtimeThreads:

@@ -11,9 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from joint_space_control.nodes.controller_base import COMMON_PARAMETERS
-from joint_space_control.nodes.inverse_dynamics_controller import InverseDynamicsControllerNode
-from joint_space_control.nodes.pd_gravity_controller import PDGravityControllerNode
+from joint_space_control.control.configure import COMMON_PARAMETERS, INVERSE_DYNAMICS, PD_GRAVITY
 from joint_space_control.nodes.recorder import PARAMETERS as RECORDER
 from joint_space_control.nodes.trajectory_generator import PARAMETERS as GENERATOR
 from joint_space_control.ros.parameters import ROBOT_PARAMETERS, ParamSpec
@@ -26,9 +24,8 @@ CONFIG = ROOT / "joint_space_control" / "config"
 
 NODES: dict[str, tuple[ParamSpec, ...]] = {
     "sim_bridge": SIM_BRIDGE,
-    "pd_gravity_controller": COMMON_PARAMETERS + PDGravityControllerNode.LAW_PARAMETERS,
-    "inverse_dynamics_controller": COMMON_PARAMETERS
-    + InverseDynamicsControllerNode.LAW_PARAMETERS,
+    "pd_gravity_controller": PD_GRAVITY.parameters,
+    "inverse_dynamics_controller": INVERSE_DYNAMICS.parameters,
     "trajectory_generator": GENERATOR,
     "recorder": RECORDER,
 }

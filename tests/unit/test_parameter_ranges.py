@@ -19,7 +19,7 @@ from rclpy.parameter import Parameter
 from joint_space_control.experiments import scenario
 from joint_space_control.experiments.domains import lease_domain
 from joint_space_control.nodes.pd_gravity_controller import PDGravityControllerNode
-from joint_space_control.ros.parameters import ParamSpec, declare
+from joint_space_control.ros.parameters import ParamSpec, declare, descriptor_range
 from sim_bridge.parameters import prefixed
 from tests.unit.test_parameter_docs import CONFIG, NODES, WORLDS, flat
 
@@ -36,20 +36,20 @@ def numeric(specs):
 
 # -- the descriptor ------------------------------------------------------------------------
 def test_a_ranged_spec_puts_its_range_in_the_descriptor():
-    (fp,) = ZETA.descriptor_range()["floating_point_range"]
+    (fp,) = descriptor_range(ZETA)["floating_point_range"]
     assert (fp.from_value, fp.to_value, fp.step) == (0.0, 10.0, 0.0)
-    (fp,) = COUNTS.descriptor_range()["floating_point_range"]
+    (fp,) = descriptor_range(COUNTS)["floating_point_range"]
     assert (fp.from_value, fp.to_value, fp.step) == (0.0, 1e9, 1.0)
     # an exclusive minimum is still the range's from_value (ROS ranges are inclusive)
-    (fp,) = RATE.descriptor_range()["floating_point_range"]
+    (fp,) = descriptor_range(RATE)["floating_point_range"]
     assert (fp.from_value, fp.to_value) == (0.0, 1e5)
-    (ir,) = SEED.descriptor_range()["integer_range"]
+    (ir,) = descriptor_range(SEED)["integer_range"]
     assert (ir.from_value, ir.to_value, ir.step) == (0, 1000, 1)
 
 
 def test_a_minimum_only_spec_has_no_range():
-    assert TIME.descriptor_range() == {}
-    assert ParamSpec("robot", "planar_2dof", "text").descriptor_range() == {}
+    assert descriptor_range(TIME) == {}
+    assert descriptor_range(ParamSpec("robot", "planar_2dof", "text")) == {}
 
 
 def test_the_constraints_text_says_the_whole_range():
@@ -95,7 +95,7 @@ def test_every_numeric_default_lies_within_its_declared_range(node):
             assert np.all(defaults <= spec.maximum), (node, spec.name)
             assert spec.minimum is None or spec.minimum < spec.maximum, (node, spec.name)
         if spec.ranged:
-            (rng,) = next(iter(spec.descriptor_range().values()))
+            (rng,) = next(iter(descriptor_range(spec).values()))
             assert (rng.from_value, rng.to_value) == (spec.minimum, spec.maximum)
 
 
