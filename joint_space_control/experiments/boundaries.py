@@ -56,6 +56,7 @@ class Settings(Protocol):
     plant: dict[str, Any]
     parameters: dict[str, Any]
     reference: dict[str, Any]
+    # and the controller's executable: a Scenario's ``controller``, a RunView's ``executable``
 
 
 #: Samples of the other axis per grid cell when a boundary curve is drawn across it.
@@ -121,25 +122,14 @@ def gravity_bound(
     return best
 
 
-def controller_model(robot: str, parameters: Mapping[str, Any]) -> RobotModel:
-    """The controller's own model B̂, ĝ of a run, from its parameters as the node builds it
-    (``joints``, ``model_mass_scale``, ``model_payload_mass``, ``model_gravity``,
-    ``effort_limits``; friction plays no part at rest)."""
-    from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
-    from joint_space_control.model.robots import resolve_robot
+def controller_model(settings: Settings) -> RobotModel:
+    """The controller's own model B̂, ĝ of a run, as its node builds it from its parameters
+    (:func:`~joint_space_control.experiments.values.controller_model`)."""
+    from joint_space_control.experiments import values
 
-    limits = parameters.get("effort_limits")
-    pert = ModelPerturbation(
-        mass_scale=parameters.get("model_mass_scale", 1.0),
-        payload_mass=float(parameters.get("model_payload_mass", 0.0)),
-        gravity=bool(parameters.get("model_gravity", True)),
-    )
-    return RobotModel(
-        resolve_robot(robot),
-        joints=parameters.get("joints") or None,
-        perturbation=pert,
-        effort_limits=limits if limits is not None and np.size(limits) else None,
-    )
+    executable = getattr(settings, "executable", "") or settings.controller
+    given = getattr(settings, "given", settings.parameters)  # a RunView's own, or a Scenario's
+    return values.controller_model(executable, settings.robot, given)
 
 
 # --------------------------------------------------------------------------- saturation
@@ -175,8 +165,14 @@ def step_of(scenario: Settings) -> tuple[np.ndarray, np.ndarray]:
     limits, as the plant does) and the step to the reference's target [rad]."""
     if scenario.reference.get("shape") != "step":
         raise ValueError(f"needs a step reference, got {scenario.reference.get('shape')!r}")
-    model = controller_model(scenario.robot, scenario.parameters)
-    q0 = per_joint(scenario.plant.get("initial_positions", 0.0), model.n, "initial_positions")
+    from joint_space_control.experiments import values
+
+    model = controller_model(scenario)
+    q0 = per_joint(
+        values.plant_values(scenario.robot, scenario.plant)["initial_positions"],
+        model.n,
+        "initial_positions",
+    )
     q0, _ = model.clip_into_limits(q0)
     target = per_joint(scenario.reference["target"], model.n, "target")
     return q0, target - q0
@@ -185,7 +181,7 @@ def step_of(scenario: Settings) -> tuple[np.ndarray, np.ndarray]:
 def saturation_onset(scenario: Settings) -> float:
     """:func:`saturation_onset_omega` of a run's settings (controller model, q0, target)."""
     q0, delta = step_of(scenario)
-    return saturation_onset_omega(controller_model(scenario.robot, scenario.parameters), q0, delta)
+    return saturation_onset_omega(controller_model(scenario), q0, delta)
 
 
 def _check_saturation(data: Mapping[str, Any]) -> None:
@@ -201,7 +197,10 @@ def _check_saturation(data: Mapping[str, Any]) -> None:
 
 def alpha_of(scenario: Settings) -> float:
     """α of a run's plant (:func:`gravity_bound` with ``plant.payload_mass``)."""
-    return gravity_bound(scenario.robot, float(scenario.plant.get("payload_mass", 0.0)))
+    from joint_space_control.experiments import values
+
+    plant = values.plant_values(scenario.robot, scenario.plant)
+    return gravity_bound(scenario.robot, float(plant["payload_mass"]))
 
 
 def _check_alpha(data: Mapping[str, Any]) -> None:

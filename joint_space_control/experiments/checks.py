@@ -24,7 +24,7 @@ from joint_space_control.experiments import boundaries, practice, views
 from joint_space_control.experiments.boundaries import gravity_bound
 from joint_space_control.experiments.views import Outcome, RunView
 
-_fmt, _joints, _model, _vec = views.fmt, views.joints, views.model, views.vec
+_fmt, _joints, _vec = views.fmt, views.joints, views.vec
 
 
 def final_error(runs: list[RunView], tol: float = 1e-3) -> list[Outcome]:
@@ -50,7 +50,7 @@ def pd_offset(runs: list[RunView], rtol: float = 0.02) -> list[Outcome]:
         e = _vec(r.controller["final_error"], joints)
         q_e = np.array(r.events[-1]["q"])
         kp = np.array(r.controller["config"]["kp"], dtype=float)
-        g = _model(r.robot).gravity(q_e)
+        g = r.plant_model().gravity(q_e)
         spring = kp * e
         residual = np.abs(spring - g)
         ok = bool(np.max(np.abs(e)) > 1e-3 and np.all(residual <= rtol * np.abs(g) + 0.5))
@@ -73,8 +73,8 @@ def _gravity_equilibrium(r: RunView, q_d: np.ndarray, kp: np.ndarray) -> np.ndar
     not the plant's g (its ``payload_mass``). For K_P,i > α the map
     q ↦ q_d − K_P⁻¹(g(q) − ĝ(q_d)) is a contraction (‖K_P⁻¹ ∂g/∂q‖₂ ≤ α / min K_P < 1), so
     the fixed point is unique and found by iterating it; q_e = q_d when ĝ = g."""
-    plant = _model(r.robot, payload_mass=float(r.plant.get("payload_mass", 0.0)))
-    g_hat = boundaries.controller_model(r.robot, r.parameters).gravity(q_d)
+    plant = r.plant_model(payload=True)
+    g_hat = r.controller_model().gravity(q_d)
     q = q_d.copy()
     for _ in range(1000):
         nxt = q_d - (plant.gravity(q) - g_hat) / kp
@@ -97,7 +97,7 @@ def constant_gravity(
         joints = _joints(r.controller)
         e = _vec(r.controller["final_error"], joints)
         kp = np.array(r.controller["config"]["kp"], dtype=float)
-        alpha = gravity_bound(r.robot, float(r.plant.get("payload_mass", 0.0)))
+        alpha = gravity_bound(r.robot, float(r.plant["payload_mass"]))
         q_d = np.array([r.controller["steps"][-1]["joints"][j]["target"] for j in joints])
         q_e = _gravity_equilibrium(r, q_d, kp) if kp.min() > alpha else q_d
         miss = float(np.max(np.abs((q_d - e) - q_e)))  # q = q_d − e at the end
@@ -167,7 +167,7 @@ def saturation_boundary(runs: list[RunView], margin: float = 0.15) -> list[Outco
     decide) no claim. One outcome for each side."""
     below, above, between = [], [], []
     for r in runs:
-        omega = r.parameters.get("omega_n")
+        omega = r.given.get("omega_n")  # as the scenario gives it
         if np.size(omega) != 1:
             raise ValueError(f"{r.label}: saturation_boundary needs one omega_n, got {omega!r}")
         omega = float(np.ravel(omega)[0])
@@ -324,7 +324,7 @@ def iterative_gravity(runs: list[RunView], rtol: float = 0.05) -> list[Outcome]:
         joints = _joints(r.controller)
         targets = [s["joints"] for s in r.controller["steps"]]
         q_d = np.array([targets[-1][j]["target"] for j in joints])
-        g_d = _model(r.robot).gravity(q_d)
+        g_d = r.plant_model().gravity(q_d)
         us = [
             np.array(e["controller"]["gravity_estimate"])
             for e in r.events

@@ -18,7 +18,7 @@ import numpy as np
 from joint_space_control.analysis import frequency
 from joint_space_control.analysis.metrics import position_spread
 from joint_space_control.experiments.boundaries import gravity_jacobian
-from joint_space_control.experiments.views import Outcome, RunView, fmt, joints, model, vec
+from joint_space_control.experiments.views import Outcome, RunView, fmt, joints, vec
 from joint_space_control.laws.disturbance import (
     coulomb_dead_band,
     inverse_dynamics_static_offset,
@@ -56,29 +56,29 @@ def _law(r: RunView) -> str:
     """``pd`` (PD + g, or PD with another gravity term), ``pid``, or the inverse dynamics
     controller's law."""
     if r.executable == "inverse_dynamics_controller":
-        return str(r.parameters.get("law", "inverse_dynamics"))
-    ki = _per_joint(r.parameters.get("ki"), len(joints(r.controller)))
+        return str(r.parameters["law"])
+    ki = _per_joint(r.parameters["ki"], len(joints(r.controller)))
     return "pid" if np.any(ki > 0) else "pd"
 
 
 def _gravity_error(r: RunView, q: np.ndarray, q_d: np.ndarray) -> np.ndarray:
     """g(q) − ĝ at rest for the run's gravity compensation (PD controllers)."""
-    g = model(r.robot).gravity(q)
-    mode = r.parameters.get("gravity_compensation", "full")
+    g = r.plant_model().gravity(q)
+    mode = r.parameters["gravity_compensation"]
     if mode == "none":
         return g
     if mode == "desired":
-        return g - model(r.robot).gravity(q_d)
+        return g - r.plant_model().gravity(q_d)
     return np.zeros_like(g)
 
 
 def wrench(r: RunView) -> tuple[str, np.ndarray]:
     """The link and the wrench w = (f, μ) applied to the robot by the plant's schedule."""
-    link = r.plant.get("wrench_link")
+    link = r.plant["wrench_link"]
     if not link:
         raise ValueError("the disturbance check needs plant.wrench_link (the link pushed)")
-    force = np.asarray(r.plant.get("wrench_force", [0.0] * 3), dtype=float)
-    torque = np.asarray(r.plant.get("wrench_torque", [0.0] * 3), dtype=float)
+    force = np.asarray(r.plant["wrench_force"], dtype=float)
+    torque = np.asarray(r.plant["wrench_torque"], dtype=float)
     return str(link), np.concatenate([force, torque])
 
 
@@ -94,7 +94,7 @@ def disturbance(runs: list[RunView], rtol: float = 0.02, atol: float = 1e-4) -> 
         q_f = final_true(r)
         q_d = q_f + e
         link, w = wrench(r)
-        m = model(r.robot)
+        m = r.plant_model()
         tau_ext = m.link_jacobian(q_f, link).T @ w
         kp = np.asarray(r.controller["config"]["kp"], dtype=float)
         law = _law(r)
@@ -129,8 +129,8 @@ def disturbance(runs: list[RunView], rtol: float = 0.02, atol: float = 1e-4) -> 
 
 
 def _friction(r: RunView, n: int) -> tuple[np.ndarray, np.ndarray]:
-    fc = _per_joint(r.plant.get("coulomb_friction"), n)
-    fs = _per_joint(r.plant.get("static_friction"), n)
+    fc = _per_joint(r.plant["coulomb_friction"], n)
+    fs = _per_joint(r.plant["static_friction"], n)
     return fc, np.where(fs > 0, fs, fc)
 
 
@@ -226,7 +226,7 @@ def repeatability(runs: list[RunView], tol: float = 1e-5) -> list[Outcome]:
         elif not np.any(fs > 0):
             # zero-mean noise on a linear loop: the mean lands on the target within its own
             # uncertainty (3 standard errors) and half an encoder count
-            counts = _per_joint(first.plant.get("encoder_counts"), len(names))
+            counts = _per_joint(first.plant["encoder_counts"], len(names))
             quantum = np.where(counts > 0, 2 * np.pi / np.where(counts > 0, counts, 1), 0.0)
             sem = spread["three_sigma"] / 3.0 / np.sqrt(len(members))
             unbiased = 3.0 * sem + quantum / 2.0
@@ -277,8 +277,8 @@ def _moving_joint(q_d: np.ndarray, q0: np.ndarray) -> int:
 
 def _period(r: RunView) -> tuple[float, float]:
     """The control period T_s = 1/rate and the plant's physics step [s]."""
-    physics_dt = 1.0 / float(r.plant.get("physics_rate", 1000.0))
-    return 1.0 / float(r.parameters.get("rate", 1000.0)), physics_dt
+    physics_dt = 1.0 / float(r.plant["physics_rate"])
+    return 1.0 / float(r.parameters["rate"]), physics_dt
 
 
 def _diverges(y: np.ndarray) -> bool:
@@ -409,7 +409,7 @@ def frequency_response(
             t[0] + _settle_time(zeta, omega_n),
         )
         gain, phase = float(fit.gain[0]), float(fit.phase[0])
-        regulation = not r.parameters.get("reference_derivatives", True)
+        regulation = not r.parameters["reference_derivatives"]
         g = complex(second_order_frequency_response(omega, omega_n, zeta)) if regulation else 1.0
         ok = (
             abs(gain - abs(g)) <= gain_tol * max(abs(g), 0.1)
@@ -481,21 +481,21 @@ def predicted_chatter(
     is neglected (it filters the noise far below the sampling rate)."""
     names = joints(r.controller)
     n = len(names)
-    m = model(r.robot)
+    m = r.plant_model()
     rng = np.random.default_rng(seed)
-    sigma_q = _per_joint(r.plant.get("position_noise"), n)
-    counts = _per_joint(r.plant.get("encoder_counts"), n)
+    sigma_q = _per_joint(r.plant["position_noise"], n)
+    counts = _per_joint(r.plant["encoder_counts"], n)
     quantum = np.where(counts > 0, 2 * np.pi / np.where(counts > 0, counts, 1), 0.0)
     noise_q = rng.normal(0.0, 1.0, (samples, n)) * sigma_q
     noise_q += rng.uniform(-0.5, 0.5, (samples, n)) * quantum
-    source = str(r.parameters.get("velocity_source", "auto"))
+    source = str(r.parameters["velocity_source"])
     if source == "auto":  # the measured velocity, or the filtered difference without one
-        measured = r.plant.get("measure_velocity", True)
+        measured = r.plant["measure_velocity"]
         source = "measured" if measured else "filtered_difference"
-    cutoff = float(r.parameters.get("velocity_cutoff", 50.0))
+    cutoff = float(r.parameters["velocity_cutoff"])
     estimator = _estimator(source, n, cutoff)
     if estimator is None:  # measured velocities
-        v = rng.normal(0.0, 1.0, (samples, n)) * _per_joint(r.plant.get("velocity_noise"), n)
+        v = rng.normal(0.0, 1.0, (samples, n)) * _per_joint(r.plant["velocity_noise"], n)
     else:
         v = np.array([estimator.update(k * period, noise_q[k]) for k in range(samples)])
     kp = np.asarray(r.controller["config"]["kp"], dtype=float)
@@ -526,8 +526,8 @@ def measurement_noise(runs: list[RunView], rtol: float = 0.15) -> list[Outcome]:
         period = float(np.median(np.diff(t)))
         q = final_true(r)
         noisy = bool(
-            np.any(_per_joint(r.plant.get("position_noise"), len(names)) > 0)
-            or np.any(_per_joint(r.plant.get("velocity_noise"), len(names)) > 0)
+            np.any(_per_joint(r.plant["position_noise"], len(names)) > 0)
+            or np.any(_per_joint(r.plant["velocity_noise"], len(names)) > 0)
         )
         predicted = predicted_chatter(r, q, period) if noisy else np.full(len(names), np.nan)
         true_rms = np.full(len(names), np.nan)
@@ -545,14 +545,14 @@ def measurement_noise(runs: list[RunView], rtol: float = 0.15) -> list[Outcome]:
         if saturated:
             why = f" (saturated {100 * saturated:.2g} % of the time: outside the prediction)"
         if not noisy:
-            counts = _per_joint(r.plant.get("encoder_counts"), len(names))
+            counts = _per_joint(r.plant["encoder_counts"], len(names))
             kd = np.asarray(r.controller["config"]["kd"], dtype=float)
             jump = kd * 2 * np.pi / np.where(counts > 0, counts, np.inf) / period
             why = (
                 f" (quantization alone, no noise to dither it: no prediction; one count is a "
                 f"K_D Δ/T_s = {_arr(jump, 0)} N·m step with a backward difference)" + why
             )
-        source = r.parameters.get("velocity_source", "auto")
+        source = r.parameters["velocity_source"]
         law = "inverse dynamics" if r.executable.startswith("inverse") else "PD + g"
         out.append(
             Outcome(
@@ -568,8 +568,8 @@ def measurement_noise(runs: list[RunView], rtol: float = 0.15) -> list[Outcome]:
                     "chatter_predicted": predicted.tolist(),
                     "true_rms_error": true_rms.tolist(),
                     "saturated_fraction": saturated,
-                    "position_noise": _per_joint(r.plant.get("position_noise"), len(names))[0],
-                    "encoder_counts": _per_joint(r.plant.get("encoder_counts"), len(names))[0],
+                    "position_noise": _per_joint(r.plant["position_noise"], len(names))[0],
+                    "encoder_counts": _per_joint(r.plant["encoder_counts"], len(names))[0],
                 },
             )
         )

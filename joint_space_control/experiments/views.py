@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.analysis.bag import ControllerState, JointStates
-from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
-from joint_space_control.model.robots import resolve_robot
+from joint_space_control.experiments import values
+from joint_space_control.model.dynamics import RobotModel
 
 
 @dataclass
@@ -25,18 +25,36 @@ class Outcome:
 
 @dataclass
 class RunView:
-    """What a check needs of one run (see runner.RunResult)."""
+    """What a check needs of one run (see runner.RunResult). ``parameters`` and ``plant``
+    are the values the nodes ran with: the scenario's over the declared defaults
+    (:mod:`~joint_space_control.experiments.values`), so a check reads
+    ``r.parameters["rate"]`` and never types a default of its own."""
 
     label: str
     robot: str
     controller: dict  # the controller's metrics (metrics.json)
     events: list[dict]
-    parameters: dict
-    plant: dict = field(default_factory=dict)  # the run's sim_bridge parameters
+    parameters: dict  # the controller's parameter values
+    plant: dict = field(default_factory=dict)  # the run's sim_bridge parameter values
     executable: str = ""  # the controller executable
     state: ControllerState | None = None  # its recorded ~/state, for signal checks
     truth: JointStates | None = None  # the plant's true state (imperfect measurement only)
     reference: dict = field(default_factory=dict)  # the scenario's reference
+
+    def __post_init__(self) -> None:
+        self.given = dict(self.parameters)  # the scenario's own, for the models
+        self.plant_given = dict(self.plant)
+        if self.executable:
+            self.parameters = values.controller_values(self.executable, self.robot, self.given)
+        self.plant = values.plant_values(self.robot, self.plant_given)
+
+    def plant_model(self, payload: bool = False) -> RobotModel:
+        """The plant's robot in Pinocchio (with the plant's ``payload_mass`` if ``payload``)."""
+        return values.plant_model(self.robot, self.plant_given, payload)
+
+    def controller_model(self) -> RobotModel:
+        """The controller's own model B̂, ĝ, as its node builds it."""
+        return values.controller_model(self.executable, self.robot, self.given)
 
 
 def joints(c: dict) -> list[str]:
@@ -49,7 +67,3 @@ def vec(d: dict, names: Sequence[str]) -> np.ndarray:
 
 def fmt(x: float | None) -> str:
     return "n/a" if x is None or not math.isfinite(x) else f"{x:.3g}"
-
-
-def model(robot: str, **pert: Any) -> RobotModel:
-    return RobotModel(resolve_robot(robot), perturbation=ModelPerturbation(**pert))

@@ -11,8 +11,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from joint_space_control.experiments import boundaries, checks, sweep_figures
+from joint_space_control.experiments import boundaries, checks, sweep_figures, values
 from joint_space_control.experiments.scenario import Axis, available, load, parse
+
+ID = "inverse_dynamics_controller"
 
 STEP = {
     "title": "t",
@@ -156,7 +158,7 @@ def test_saturation_onset_is_where_the_first_command_reaches_a_limit():
     q0, target = np.array([-1.0, 0.5]), np.array([-0.9, 0.35])
     onsets = []
     for scale in (0.6, 1.0, 1.4):
-        model = boundaries.controller_model("planar_2dof", {"model_mass_scale": scale})
+        model = values.controller_model(ID, "planar_2dof", {"model_mass_scale": scale})
         omega = boundaries.saturation_onset_omega(model, q0, target - q0)
         tau = boundaries.step_torque_at_rest(model, q0, target - q0, omega)
         ratio = np.abs(tau) / model.effort_limits
@@ -167,13 +169,14 @@ def test_saturation_onset_is_where_the_first_command_reaches_a_limit():
         # the scenario form reads the same settings
         settings = SimpleNamespace(
             robot="planar_2dof",
+            controller=ID,
             plant={"initial_positions": q0.tolist()},
             parameters={"model_mass_scale": scale},
             reference={"shape": "step", "target": target.tolist()},
         )
         assert boundaries.saturation_onset(settings) == omega
     assert onsets[0] > onsets[1] > onsets[2]
-    unit = boundaries.controller_model("planar_2dof", {})
+    unit = values.controller_model(ID, "planar_2dof", {})
     never = boundaries.saturation_onset_omega(unit, q0, np.zeros(2))
     assert never == math.inf
 
@@ -202,7 +205,7 @@ def test_boundary_curves_follow_the_other_axis():
     mass = s.variants.axes[0]
     np.testing.assert_allclose(mass.positions(scales)[[0, -1]], [-0.5, 2.5])
     for scale, omega in zip(scales[::3], omegas[::3], strict=True):
-        model = boundaries.controller_model("planar_2dof", {"model_mass_scale": scale})
+        model = values.controller_model(ID, "planar_2dof", {"model_mass_scale": scale})
         q0 = np.array([-1.0, 0.5])
         tau = boundaries.step_torque_at_rest(model, q0, np.array([0.1, -0.15]), omega)
         assert np.max(np.abs(tau) / model.effort_limits) == pytest.approx(1.0, abs=1e-9)
@@ -387,7 +390,9 @@ def pd_view(label, kp, payload, final, model_payload=None):
         "steps": [{"joints": {"joint1": {"target": 1.2}, "joint2": {"target": -0.8}}}],
     }
     params = {"kp": kp, "model_payload_mass": payload if model_payload is None else model_payload}
-    return checks.RunView(label, "planar_2dof", c, [], params, {"payload_mass": payload})
+    return checks.RunView(
+        label, "planar_2dof", c, [], params, {"payload_mass": payload}, "pd_gravity_controller"
+    )
 
 
 def test_constant_gravity_judges_above_alpha_of_each_plant_and_summarises_a_grid():

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from joint_space_control.experiments import practice
-from joint_space_control.experiments.views import RunView, model
+from joint_space_control.experiments.views import RunView
+from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.model.robots import resolve_robot
 
 JOINTS = ["joint1", "joint2"]
 KP = np.array([2000.0, 1000.0])
@@ -31,6 +33,10 @@ def run(e, label="run", executable="pd_gravity_controller", parameters=None, pla
         executable,
         reference={"target": (Q_F + e).tolist()},
     )
+
+
+def model(robot: str) -> RobotModel:
+    return RobotModel(resolve_robot(robot))
 
 
 PUSH = {"wrench_link": "link2", "wrench_force": W[:3].tolist(), "wrench_torque": W[3:].tolist()}
