@@ -88,6 +88,7 @@ from sim_bridge.parameters import (
     MODES,  # noqa: F401  (re-exported: the modes of the node)
     PARAMETERS,
     ROBOT_OWN,
+    lockstep_period,
     prefixed,
     robot_names,
     robot_values,
@@ -140,11 +141,8 @@ class SimBridge(Node):
         self.mode = params.value(v, "mode")
         physics_rate = params.value(v, "physics_rate")
         publish_rate = params.value(v, "publish_rate")
-        substeps = round(physics_rate / publish_rate)
-        if substeps < 1 or abs(substeps * publish_rate - physics_rate) > 1e-6 * physics_rate:
-            raise ValueError("physics_rate must be an integer multiple of publish_rate")
+        substeps, self.physics_dt_ns = lockstep_period(v)
         self.substeps = substeps
-        self.physics_dt_ns = round(1e9 / physics_rate)
         self.period_ns = substeps * self.physics_dt_ns
         self.command_timeout = params.value(v, "command_timeout")
         self.reject_factor = params.value(v, "reject_factor")
@@ -160,6 +158,7 @@ class SimBridge(Node):
         except Exception:
             self.world.close()
             raise
+        self._plants = [robot.plant for robot in self.robots]
         if self.world.gui:  # every robot as it starts, no panels
             bodies = [robot.plant.body for robot in self.robots]
             if len(bodies) == 1:
@@ -469,16 +468,10 @@ class SimBridge(Node):
 
     def _step_lockstep(self) -> None:
         """Every robot's answer held over one period, the world stepped (lock held)."""
-        t = self._t_ns * 1e-9
+        answers = [robot.answer for robot in self.robots]
         for robot in self.robots:
-            robot.plant.begin_torque(robot.answer)
             robot.answer = None
-        for k in range(self.substeps):
-            for robot in self.robots:
-                robot.plant.apply_torque(k, t)
-            self.world.step()
-        for robot in self.robots:
-            robot.plant.end_torque()
+        self.world.step_torques(self._plants, answers, self.substeps, self._t_ns * 1e-9)
         self._t_ns += self.period_ns
         self._publish_state()
 

@@ -101,6 +101,22 @@ class World:
     def step(self) -> None:
         pb.stepSimulation(physicsClientId=self.client)
 
+    def step_torques(
+        self, plants: Sequence[Plant], torques: Sequence[np.ndarray], substeps: int, t: float
+    ) -> None:
+        """One lockstep period from time ``t`` [s]: each plant's torque held over
+        ``substeps`` physics steps of the whole world (with each plant's friction, rate
+        limit and wrench applied before every step). sim_bridge's lockstep and the
+        in-process engine both step the world through here."""
+        for plant, tau in zip(plants, torques, strict=True):
+            plant.begin_torque(tau)
+        for k in range(substeps):
+            for plant in plants:
+                plant.apply_torque(k, t)
+            self.step()
+        for plant in plants:
+            plant.end_torque()
+
     def friction_solver(self, plant: Plant, on: bool) -> None:
         """Bullet's solver settings for Coulomb friction while any plant of the world has it
         (:data:`FRICTION_SOLVER`; the solver is the world's)."""

@@ -13,7 +13,6 @@ after ``command_timeout`` without a valid command), ``<ns>/sim_bridge/wrench`` a
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -33,9 +32,8 @@ from joint_space_control.ros.messages import (
 )
 from joint_space_control.ros.wire import JointStateImage, JointStateReader
 from sim_bridge.ownership import ARRAY_COMMANDER, CommandOwnership
-from sim_bridge.plant import Plant, World, coulomb_bounds
-from sim_bridge.sensors import Encoder
-from sim_bridge.wrench import WrenchSchedule
+from sim_bridge.plant import World
+from sim_bridge.robot_plant import RobotPlant
 
 #: The safety counters of a robot (on /diagnostics; docs/safety.md).
 COUNTERS = (
@@ -46,17 +44,6 @@ COUNTERS = (
 )
 
 
-def quaternion(rpy: np.ndarray) -> tuple[float, float, float, float]:
-    """(x, y, z, w) of roll, pitch, yaw about the fixed x, y, z axes (R = Rz Ry Rx)."""
-    (cr, sr), (cp, sp), (cy, sy) = ((math.cos(a / 2), math.sin(a / 2)) for a in rpy)
-    return (
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-        cr * cp * cy + sr * sp * sy,
-    )
-
-
 class SimRobot:
     """A robot in the world; ``name`` is its namespace ("" : the node's, one robot)."""
 
@@ -65,32 +52,19 @@ class SimRobot:
         self.name = name
         prefix = f"{name}/" if name else ""
         self.private = f"{name}/{node.get_name()}/" if name else "~/"
-        model = params.robot_model(
-            values, node=node, description_topic=prefix + "robot_description"
+        topic = prefix + "robot_description"
+        self.body = RobotPlant(
+            values,
+            world,
+            lambda text: self._log().warning(self._say(text)),
+            lambda timeout: params.description_from_topic(node, timeout, topic),
         )
-        self.spec = model.spec
-        self.label = name or model.spec.name
-        self.joints = model.joint_names
-        n = self.n = len(self.joints)
-        self.plant = Plant(
-            model.spec,
-            self.joints,
-            friction=params.value(values, "viscous_friction", n),
-            payload_mass=params.value(values, "payload_mass"),
-            initial_positions=self._initial_positions(values, model),
-            locked_positions=model.locked_positions,
-            effort_limits=model.effort_limits,
-            world=world,
-            base_position=params.value(values, "base_position"),
-            base_orientation=quaternion(params.value(values, "base_rpy")),
-        )
-        self.plant.set_torque_rate_limit(params.value(values, "max_torque_rate", n))
-        for warning in self.plant.warnings:
-            self._log().warning(self._say(warning))
-        self.plant.set_coulomb_friction(*self._coulomb(values))
-        self.plant.set_wrench_schedule(self._schedule(values))
-        self.encoder = Encoder(n, *self._encoder(values), seed=seed_of(values))
-        self.measure_velocity = bool(values["measure_velocity"])
+        self.plant, self.encoder = self.body.plant, self.body.encoder
+        self.spec = self.body.spec
+        self.label = name or self.spec.name
+        self.joints = self.body.joints
+        n = self.n = self.body.n
+        self.measure_velocity = self.body.measure_velocity
 
         self.counts = dict.fromkeys(COUNTERS, 0)
         self.ownership = CommandOwnership()
@@ -105,9 +79,7 @@ class SimRobot:
         )
         velocities = n if self.measure_velocity else 0
         self.image = JointStateImage(self.joints, (n, velocities, n))
-        self._q, self._dq = np.zeros(n), np.zeros(n)  # true state, when measured
         self._truth = JointStateImage(self.joints)
-        self.measured_ns: int | None = None  # time of the state in the image
         #: the topics as a log line names them (relative, as given)
         self.names = {t: prefix + t for t in ("joint_states", "effort_command")}
         self.topics = {
@@ -136,101 +108,27 @@ class SimRobot:
         return f"{self.name}: {text}" if self.name else text
 
     # -- parameters --------------------------------------------------------------------
-    def _initial_positions(self, values: params.ParamValues, model: Any) -> np.ndarray:
-        """``initial_positions``, clipped into the joint limits (with a log line when it
-        had to be: a zero configuration can lie outside them, Panda joint 4 say)."""
-        q0 = params.value(values, "initial_positions", self.n)
-        clipped, outside = model.clip_into_limits(q0)
-        if outside:
-            self._log().warning(
-                self._say(
-                    f"initial positions of {outside} are outside their joint limits: clipped "
-                    f"into them, starting at {clipped.tolist()}"
-                )
-            )
-        return clipped
-
-    def _coulomb(self, values: params.ParamValues) -> tuple[tuple[float, ...], ...]:
-        """(F_c, F_s) per joint, checked (F_s = F_c where ``static_friction`` is 0)."""
-        fc, fs = coulomb_bounds(
-            params.value(values, "coulomb_friction", self.n),
-            params.value(values, "static_friction", self.n),
-        )
-        return tuple(fc), tuple(fs)
-
-    def _schedule(self, values: params.ParamValues) -> WrenchSchedule:
-        """The scheduled wrench; its link must be one of the plant's."""
-        schedule = WrenchSchedule(
-            params.value(values, "wrench_force"),
-            params.value(values, "wrench_torque"),
-            params.value(values, "wrench_profile"),
-            params.value(values, "wrench_start"),
-            params.value(values, "wrench_duration"),
-            params.value(values, "wrench_frequency"),
-            link=params.value(values, "wrench_link"),
-        )
-        try:
-            self.plant.link_index(schedule.link)
-        except ValueError as err:
-            raise ValueError(f"'wrench_link': {err}") from None
-        return schedule
-
-    def _encoder(self, values: params.ParamValues) -> tuple[np.ndarray, ...]:
-        return (
-            params.value(values, "encoder_counts", self.n),
-            params.value(values, "position_noise", self.n),
-            params.value(values, "velocity_noise", self.n),
-        )
-
     def update(self, values: params.ParamValues, changed: set[str]) -> Any:
         """Check new values (ValueError with the reason); returns the function that applies
         them (with the world's lock held)."""
-        friction = params.value(values, "viscous_friction", self.n)
-        payload = params.value(values, "payload_mass")
-        max_rate = params.value(values, "max_torque_rate", self.n)
-        coulomb = self._coulomb(values)
-        schedule = self._schedule(values)
-        encoder = self._encoder(values)
-        seed = seed_of(values)
-
-        def apply() -> None:
-            plant = self.plant
-            plant.set_friction(friction)
-            plant.set_torque_rate_limit(max_rate)
-            if payload != plant.payload_mass:
-                plant.set_payload(payload)
-            if coulomb != (tuple(plant.coulomb), tuple(plant.static)):
-                plant.set_coulomb_friction(*coulomb)
-            plant.set_wrench_schedule(schedule)
-            self.encoder.configure(*encoder)
-            if "noise_seed" in changed:
-                self.encoder.reseed(seed)
-
-        return apply
+        return self.body.update(values, changed)
 
     # -- state -------------------------------------------------------------------------
     def publish_state(self, t_ns: int) -> None:
         """The joint state at t_ns, measured once per instant (world lock held)."""
-        image = self.image
-        exact = self.encoder.exact and self.measure_velocity
-        if self.measured_ns != t_ns:  # a new state: measured once
-            if exact:
-                self.plant.read_state(image.position, image.velocity, image.effort)
-            else:
-                self.plant.read_state(self._q, self._dq, image.effort)
-                self.encoder.measure(self._q, self._dq, image.position, image.velocity)
-            self.measured_ns = t_ns
+        image, body = self.image, self.body
+        body.measure(t_ns, image.position, image.velocity, image.effort)
         image.set_stamp(t_ns)
-        if not exact and self.true_pub.get_subscription_count():
+        if not body.exact and self.true_pub.get_subscription_count():
             truth = self._truth
-            truth.position[:], truth.velocity[:], truth.effort[:] = self._q, self._dq, image.effort
+            truth.position[:], truth.velocity[:] = body.true_position, body.true_velocity
+            truth.effort[:] = image.effort
             truth.set_stamp(t_ns)
             self.true_pub.publish(truth.to_bytes())
         self.state_pub.publish(image.to_bytes())
 
     def reset(self) -> None:
-        self.plant.reset()
-        self.measured_ns = None
+        self.body.reset()
         self.tau = None
         self.answer = None
 
@@ -363,10 +261,3 @@ class SimRobot:
         if self.timed_out:
             return self._say(f"no valid command for {timeout} s: brakes engaged")
         return None
-
-
-def seed_of(values: params.ParamValues) -> int:
-    seed = params.value(values, "noise_seed")
-    if seed != int(seed):
-        raise ValueError(f"'noise_seed' must be an integer, got {seed}")
-    return int(seed)

@@ -11,12 +11,12 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from builtin_interfaces.msg import Time
+from builtin_interfaces.msg import Duration, Time
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
-from trajectory_msgs.msg import JointTrajectory
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from joint_space_control.json_values import jsonable
 from joint_space_control.trajectories.reference import Trajectory
@@ -87,6 +87,31 @@ def config_message(description: dict[str, Any]) -> String:
     """``~/config``: the controller's configuration as one JSON object (README, "Controller
     configuration"); non-finite numbers (absent limits) become ``null``."""
     return String(data=json.dumps(jsonable(description), allow_nan=False))
+
+
+def reference_message(
+    joints: Sequence[str],
+    positions: Sequence[Sequence[float]],
+    times: Sequence[float] = (0.0,),
+    start_ns: int = 0,
+    velocities: Sequence[Sequence[float]] | None = None,
+    accelerations: Sequence[Sequence[float]] | None = None,
+) -> JointTrajectory:
+    """A reference as the experiments send it: points at ``times`` [s] after ``start_ns``
+    (0: when the controller takes it), velocities and accelerations where given."""
+    msg = JointTrajectory(joint_names=list(joints))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(start_ns, 1_000_000_000)
+    for k, (t, pos) in enumerate(zip(times, positions, strict=True)):
+        sec, nsec = divmod(round(t * 1e9), 1_000_000_000)
+        point = JointTrajectoryPoint(
+            positions=[float(p) for p in pos], time_from_start=Duration(sec=sec, nanosec=nsec)
+        )
+        if velocities is not None:
+            point.velocities = [float(v) for v in velocities[k]]
+        if accelerations is not None:
+            point.accelerations = [float(a) for a in accelerations[k]]
+        msg.points.append(point)
+    return msg
 
 
 def stamp_to_ns(stamp: Time) -> int:

@@ -27,6 +27,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from joint_space_control.control.controller import Step
 from joint_space_control.ros.messages import JointOrder
 
 #: Encapsulation header of a little-endian plain CDR payload.
@@ -303,3 +304,39 @@ class JointStateReader:
         self._checked = None if checked.size == self._index.size else checked
         self._span = int(checked.max()) + 1
         self._image = image
+
+
+def fill_images(
+    command: JointStateImage,
+    state: Float64ArrayImage | None,
+    stamp_ns: int,
+    step: Step,
+) -> None:
+    """Write a step into the command image (effort, stamp of the state it answers) and, when
+    given, the ``~/state`` image (README "Controller state": q_d, q̇_d, q̈_d, q, q̇, e, ė,
+    τ feedback/model/gravity, τ before and after clamping), with the reference and the
+    state (q, q̇ measured or estimated) the law used."""
+    command.effort[:] = step.tau
+    command.set_stamp(stamp_ns)
+    if state is None:
+        return
+    ref, split, q, dq = step.ref, step.split, step.q, step.dq
+    data = state.data
+    data[0] = stamp_ns * 1e-9
+    np.concatenate(
+        (
+            ref.q,
+            ref.dq,
+            ref.ddq,
+            q,
+            dq,
+            ref.q - q,
+            ref.dq - dq,
+            split.feedback,
+            split.model,
+            split.gravity,
+            step.unclamped,
+            step.tau,
+        ),
+        out=data[1:],
+    )

@@ -48,7 +48,6 @@ from joint_space_control.laws.pd_gravity import (
 from joint_space_control.laws.split import TorqueSplit
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.nodes.controller_base import fill_images
 from joint_space_control.ros.messages import (
     STATE_FIELDS,
     JointOrder,
@@ -59,7 +58,12 @@ from joint_space_control.ros.messages import (
     state_message,
     trajectory_from_msg,
 )
-from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
+from joint_space_control.ros.wire import (
+    Float64ArrayImage,
+    JointStateImage,
+    JointStateReader,
+    fill_images,
+)
 from joint_space_control.trajectories.reference import Sample
 
 NAME = st.text(alphabet=string.ascii_letters + string.digits + "_", min_size=1, max_size=12)
