@@ -10,19 +10,10 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from joint_space_control.control.configure import controller_kind
 from joint_space_control.control.controller import Controller
-from joint_space_control.control.inverse_dynamics import (
-    IDConfig,
-    InverseDynamicsController,
-    gains_from_choice,
-)
-from joint_space_control.control.pd_gravity import PDConfig, PDGravityController
-from joint_space_control.laws.gains import PDGains, choose_gains
-from joint_space_control.laws.inverse_dynamics import ModelLaw
-from joint_space_control.laws.pd_gravity import GravityCompensation
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.trajectories.reference import Trajectory
 
 #: The laws benchmarked, by the controller that runs them.
 LAWS = {
@@ -31,21 +22,22 @@ LAWS = {
 }
 
 
+#: The gains benchmarked, by law: PD + g(q) with K_P = 100, K_D = 20 on every joint;
+#: inverse dynamics (eq. 15) with ω_n = 20 rad/s, ζ = 1.
+BENCH_PARAMETERS = {
+    "pd_gravity": {"kp": 100.0, "kd": 20.0},
+    "inverse_dynamics": {"omega_n": 20.0, "zeta": 1.0},
+}
+
+
 def make_controller(model: RobotModel, law: str) -> Controller:
-    """The controller object its node runs for ``law``: PD + g(q) with K_P = 100, K_D = 20
-    on every joint, or inverse dynamics (eq. 15) with ω_n = 20 rad/s, ζ = 1."""
-    n = model.n
-    if law == "pd_gravity":
-        choice = choose_gains(n, 100.0, 20.0, 0.0, 1.0)
-        gains = PDGains.build(n, choice.kp, choice.kd)
-        zero = np.zeros(n)
-        config = PDConfig(model, gains, GravityCompensation.FULL, zero, choice, zero)
-        return PDGravityController(config, model.effort_limits)
-    if law == "inverse_dynamics":
-        choice = choose_gains(n, 0.0, 0.0, 20.0, 1.0)
-        config = IDConfig(model, gains_from_choice(choice, n), ModelLaw.INVERSE_DYNAMICS, choice)
-        return InverseDynamicsController(config, model.effort_limits)
-    raise ValueError(f"unknown law {law!r}; known: {list(LAWS)}")
+    """The controller object its node runs for ``law`` with :data:`BENCH_PARAMETERS`,
+    built from parameter values as the node builds it."""
+    if law not in LAWS:
+        raise ValueError(f"unknown law {law!r}; known: {list(LAWS)}")
+    kind = controller_kind(LAWS[law])
+    values = kind.values(robot=model.spec.name, **BENCH_PARAMETERS[law])
+    return kind.controller(values, model)
 
 
 def percentiles_us(samples_ns: Sequence[int] | np.ndarray) -> dict[str, float]:
@@ -127,30 +119,24 @@ def law_timings(robot: str, law: str, ticks: int, seed: int = 0) -> dict[str, An
 
 
 def in_process_loop(robot: str, law: str, steps: int) -> dict[str, Any]:
-    """Closed loop of the PyBullet plant and the controller object in one process, no ROS:
-    steps per second of plant state → controller step → plant step (1 kHz), a 0.3 rad step
-    on every joint."""
-    from sim_bridge.plant import Plant  # pybullet: only where the plant is needed
+    """The lockstep loop of the in-process engine (:mod:`joint_space_control.experiments.
+    inprocess`: sim_bridge's plant and sub-step loop, the controller object, no ROS, no
+    bag): steps per second of measure → controller step → physics step (1 kHz), a 0.3 rad
+    step on every joint."""
+    from joint_space_control.experiments.inprocess import InProcessLoop  # pybullet
+    from joint_space_control.experiments.scenario import RobotSetup
 
-    spec = resolve_robot(robot, "")
-    model = RobotModel(spec)
-    plant = Plant(spec, model.joint_names, 1000.0, locked_positions=model.locked_positions)
+    setup = RobotSetup("", robot, {}, LAWS[law], BENCH_PARAMETERS[law], {})
+    loop = InProcessLoop([setup], {})
     try:
-        n = model.n
-        controller = make_controller(model, law)
-        controller.add_trajectory(Trajectory.build(0.0, np.array([0.0]), np.full((1, n), 0.3)))
-        q, dq, effort = np.empty(n), np.empty(n), np.empty(n)
-
-        def step(k: int) -> None:
-            plant.read_state(q, dq, effort)
-            plant.step(controller.step(k * 1e-3, q, dq).tau, 1)
-
-        step(0)
-        t0 = time.perf_counter()
-        per_step = time_each(step, steps)
-        elapsed = time.perf_counter() - t0
+        joints = loop.controllers[0].joints
+        loop.send_reference("", joints, [[0.3] * len(joints)], [0.0])
+        loop.run_until(0.0)  # the first state answered: imports, first-call set-up
+        period = loop.period_ns * 1e-9
+        per_step = time_each(lambda k: loop.run_until((k + 1) * period), steps)
+        elapsed = sum(per_step) * 1e-9
     finally:
-        plant.close()
+        loop.close()
     return {
         "robot": robot,
         "law": law,

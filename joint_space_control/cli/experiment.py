@@ -42,6 +42,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "worker reaches at the same path), or 'threads' (threads of this process, no Dask)",
     )
     p.add_argument(
+        "--engine",
+        choices=("ros", "inprocess"),
+        default="ros",
+        help="ros (default): the nodes as processes over ROS 2, as users run them; "
+        "inprocess: the same plant and controller objects in the worker's process, no ROS "
+        "graph (lockstep only; the same metrics and check texts, much faster)",
+    )
+    p.add_argument(
         "--report", type=Path, default=None, help="also write DIR/results.md (e.g. docs/)"
     )
     p.add_argument(
@@ -66,6 +74,7 @@ def _handle(args: argparse.Namespace) -> int:
         args.report,
         args.scheduler,
         args.params_file,
+        args.engine,
     )
 
 
@@ -94,6 +103,7 @@ def run(
     report: Path | None,
     scheduler: str | None = None,
     params_file: Path | None = None,
+    engine: str = "ros",
 ) -> int:
     """Run the scenarios, all on one pool (:class:`RunPool`: ``scheduler`` None, a
     LocalCluster of ``jobs`` workers; an address; or ``"threads"``). Ctrl-C cancels the
@@ -138,7 +148,7 @@ def run(
     results: list[ExperimentResult] = []
     started = time.monotonic()
     try:
-        print(f"runs on: {pool.description}", flush=True)
+        print(f"runs on: {pool.description}, engine {engine}", flush=True)
         out.mkdir(parents=True, exist_ok=True)
         if missing := pool.missing(out):
             return error(
@@ -147,7 +157,7 @@ def run(
             )
         for k, scenario in enumerate(loaded):
             print(f"{_bar(k, len(loaded))} {scenario.name}: {scenario.title}", flush=True)
-            result = run_experiment(scenario, out, short, pool, log)
+            result = run_experiment(scenario, out, short, pool, log, engine)
             results.append(result)
             verdict = {True: "agrees with the theory", False: "FAILED", None: "ran"}[result.passed]
             print(f"  -> {verdict}: {result.out / 'summary.md'}", flush=True)

@@ -55,6 +55,7 @@ def run_experiment(
     short: bool = False,
     pool: RunPool | None = None,
     log: Callable[[str], None] = print,
+    engine: str = "ros",
 ) -> ExperimentResult:
     """The scenario's runs (tasks of ``pool``; None: two threads here), its checks, its
     figures and summary, in ``out/<name>/``. The runs write their bags and reports there
@@ -63,7 +64,7 @@ def run_experiment(
     out = out / scenario.name
     if out.exists():
         shutil.rmtree(out)  # the experiment's own directory: a rerun replaces it
-    runs = run_scenario(scenario, out, short, pool, log)
+    runs = run_scenario(scenario, out, short, pool, log, engine)
     errors = [f"{r.label}: {r.error}" for r in runs if r.error]
     views = [
         RunView(

@@ -5,6 +5,7 @@ robot of a world of several (its topics in its namespace)."""
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -13,16 +14,21 @@ from typing import Any
 
 import numpy as np
 import rclpy
-from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from std_msgs.msg import String
+from trajectory_msgs.msg import JointTrajectory
 
 from joint_space_control.experiments.client import RosClient
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import DIAGNOSTICS_QOS, statuses
-from joint_space_control.ros.messages import REFERENCE_QOS, stamp_to_ns
+from joint_space_control.ros.messages import (
+    CONFIG_QOS,
+    REFERENCE_QOS,
+    reference_message,
+    stamp_to_ns,
+)
 
 #: Longest wait [s] for a joint state or command before the probe serves the rest, and how
 #: often [s] it serves the rest (services, parameters, diagnostics, the caller's own
@@ -101,6 +107,7 @@ class LoopProbe(RosClient):
                 JointTrajectory, in_namespace(ns, "reference"), REFERENCE_QOS
             )
         self._diagnostics: dict[str, dict[str, float | str]] | None = None
+        self._configs: dict[str, dict] = {}  # newest ~/config per controller topic
 
     def observe(self, msg_type: type, topic: str, callback: Callable[[Any], None]) -> None:
         """Take every message of a high-rate topic (a controller's ``~/state``) through the
@@ -188,6 +195,24 @@ class LoopProbe(RosClient):
         )
         return dict(latest)
 
+    def controller_config(
+        self, controller: str, namespace: str = "", check: Callable[[], None] | None = None
+    ) -> dict:
+        """The newest ``~/config`` of the robot's controller (latched: the one in force),
+        subscribed on first use."""
+        topic = "/" + in_namespace(namespace, f"{controller}/config")
+        if topic not in self._configs:
+            self.node.create_subscription(
+                String,
+                topic,
+                lambda msg: self._configs.__setitem__(topic, json.loads(msg.data)),
+                CONFIG_QOS,
+            )
+            self._configs[topic] = {}
+        self.spin_until(lambda: bool(self._configs[topic]), 20.0, f"{topic}", check)
+        self.serve_ready()  # a newer one, if it is waiting
+        return self._configs[topic]
+
     def wait_for_graph(
         self,
         timeout: float = 20.0,
@@ -248,18 +273,7 @@ class LoopProbe(RosClient):
     ) -> None:
         """Publish a trajectory to the robot in ``namespace`` (default: the first) and wait
         until every subscriber has acknowledged it."""
-        msg = JointTrajectory(joint_names=list(joints))
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(start_ns, 1_000_000_000)
-        for k, (t, pos) in enumerate(zip(times, positions, strict=True)):
-            sec, nsec = divmod(round(t * 1e9), 1_000_000_000)
-            point = JointTrajectoryPoint(
-                positions=[float(p) for p in pos], time_from_start=Duration(sec=sec, nanosec=nsec)
-            )
-            if velocities is not None:
-                point.velocities = [float(v) for v in velocities[k]]
-            if accelerations is not None:
-                point.accelerations = [float(a) for a in accelerations[k]]
-            msg.points.append(point)
+        msg = reference_message(joints, positions, times, start_ns, velocities, accelerations)
         publisher = self._ref_pubs[self.namespaces[0] if namespace is None else namespace]
         publisher.publish(msg)
         if not publisher.wait_for_all_acked(rclpy.duration.Duration(seconds=20.0)):

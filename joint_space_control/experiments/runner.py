@@ -21,21 +21,24 @@ import os
 import shutil
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
+
+import numpy as np
 
 from joint_space_control.analysis.bag import BagReader, ControllerState, JointStates, joint_states
 from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
+from joint_space_control.experiments import values
 from joint_space_control.experiments.distributed import RunPool, on_cancel
+from joint_space_control.experiments.inprocess import InProcessLoop
 from joint_space_control.experiments.loop import TRUTH_TOPIC, ClosedLoop
 from joint_space_control.experiments.probe import in_namespace
 from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
-from joint_space_control.model.dynamics import RobotModel
-from joint_space_control.ros import parameters as params
+from joint_space_control.laws.pd_gravity import iterative_gravity_estimate
 from joint_space_control.trajectories.reference import Trajectory
 
 
@@ -81,7 +84,7 @@ RUN_FILES = ("bag", "report", "logs", "events.json", "error.txt")
 PREVIOUS_ATTEMPT_WAIT = 10.0
 
 
-def execute_run(run: Scenario, target: Path, short: bool) -> list[RunResult]:
+def execute_run(run: Scenario, target: Path, short: bool, engine: str = "ros") -> list[RunResult]:
     """One run of a scenario as a pool task (top-level and picklable, for Dask workers):
     the run into ``target`` (:func:`run_once`), one result per robot of the run; its
     ``label``: the run's name after its scenario's (``Scenario.with_settings``), ``run`` for
@@ -93,7 +96,7 @@ def execute_run(run: Scenario, target: Path, short: bool) -> list[RunResult]:
     results = [RunResult(s.name or label, run.of_robot(s), target, s.name) for s in run.setups()]
     _clear_previous_attempt(target)
     try:
-        run_once(run, target, short, results)
+        run_once(run, target, short, results, engine)
     except Exception as err:  # noqa: BLE001 - reported, the other runs go on
         for result in results:
             result.error = f"{type(err).__name__}: {err}"
@@ -147,6 +150,7 @@ def run_scenario(
     short: bool = False,
     pool: RunPool | None = None,
     log: Callable[[str], None] = print,
+    engine: str = "ros",
 ) -> list[RunResult]:
     """Every run of ``scenario`` (one, or one per variant), each a task of ``pool`` (None:
     two threads of this process): a result per run, or per robot of each run in a world of
@@ -163,7 +167,11 @@ def run_scenario(
         futures = {}
         for label, run in runs:
             target = out if len(runs) == 1 else out / _safe(label)
-            futures[pool.submit(run.name, execute_run, run, target, short)] = (label, run, target)
+            futures[pool.submit(run.name, execute_run, run, target, short, engine)] = (
+                label,
+                run,
+                target,
+            )
         for future in as_completed(futures):
             label, run, target = futures[future]
             if future.cancelled():
@@ -202,9 +210,17 @@ def _safe(label: str) -> str:
     return "".join(c if c.isalnum() or c in "-_.=" else "_" for c in label)
 
 
-def run_once(scenario: Scenario, out: Path, short: bool, results: list[RunResult]) -> None:
-    """One closed-loop run into ``out`` (bag/, report/, logs/, events.json); ``results``:
-    one per robot of ``scenario.setups()``, in that order."""
+#: The engines a lockstep run can run on: node processes over ROS, or this process.
+ENGINES = ("ros", "inprocess")
+
+
+def run_once(
+    scenario: Scenario, out: Path, short: bool, results: list[RunResult], engine: str = "ros"
+) -> None:
+    """One closed-loop run into ``out`` (bag/, report/, logs/, events.json) on ``engine``;
+    ``results``: one per robot of ``scenario.setups()``, in that order."""
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; known: {', '.join(ENGINES)}")
     out.mkdir(parents=True, exist_ok=True)
     bag = out / "bag"
     if bag.exists():
@@ -222,11 +238,20 @@ def run_once(scenario: Scenario, out: Path, short: bool, results: list[RunResult
         timings[name] = now - clock[0]
         clock[0] = now
 
-    with _closed_loop(scenario, out / "logs", sim_params, bag) as loop, on_cancel(loop.close):
-        lap("start")
-        _drive(loop, scenario, duration, results)
-        lap("run")
-        loop.settle_recording()
+    if engine == "ros":
+        with _closed_loop(scenario, out / "logs", sim_params, bag) as loop, on_cancel(loop.close):
+            lap("start")
+            _drive(RosRun(loop), scenario, duration, results)
+            lap("run")
+            loop.settle_recording()
+    else:
+        loop = InProcessLoop(scenario.setups(), sim_params, bag)
+        try:
+            lap("start")
+            _drive(loop, scenario, duration, results)
+            lap("run")
+        finally:
+            loop.close()
     lap("stop")
     (out / "events.json").write_text(json.dumps(_events(results), indent=1))
     analysis = analyze_bag_to(out / "report", bag)
@@ -277,59 +302,115 @@ def true_states(bag: Path, namespace: str = "") -> JointStates | None:
         return joint_states(reader.read([topic])[topic])
 
 
-def _drive(
-    loop: ClosedLoop, scenario: Scenario, duration: float, results: list[RunResult]
-) -> None:
-    """Send each robot's reference, apply the scheduled changes at their times (one robot
-    only), run to the end."""
+class RunLoop(Protocol):
+    """What driving a run needs of its engine (:class:`RosRun`, or the in-process
+    :class:`~joint_space_control.experiments.inprocess.InProcessLoop`); ``namespace``
+    names the robot ("": the one robot)."""
+
+    def send_reference(
+        self,
+        namespace: str,
+        joints: Sequence[str],
+        positions: Sequence[Sequence[float]],
+        times: Sequence[float],
+        velocities: Sequence[Sequence[float]] | None = None,
+        accelerations: Sequence[Sequence[float]] | None = None,
+    ) -> None: ...
+
+    def run_until(self, t: float) -> None: ...
+
+    def positions(self, namespace: str = "") -> np.ndarray: ...
+
+    def gains(self, namespace: str = "") -> np.ndarray: ...
+
+    def set_controller(self, namespace: str, changes: Mapping[str, Any]) -> None: ...
+
+    def set_plant(self, changes: Mapping[str, Any]) -> None: ...
+
+
+class RosRun:
+    """:class:`RunLoop` on the node processes of a :class:`ClosedLoop`: the simulator
+    holds at each ``pause_at`` (the first given at its start, the next with each change)
+    and is resumed to run to it."""
+
+    def __init__(self, loop: ClosedLoop) -> None:
+        self.loop = loop
+        self._controllers = {r.name: r.controller for r in loop.robots}
+
+    def send_reference(
+        self, namespace, joints, positions, times, velocities=None, accelerations=None
+    ) -> None:
+        self.loop.probe.send_reference(
+            list(joints),
+            positions,
+            times,
+            velocities=velocities,
+            accelerations=accelerations,
+            namespace=namespace,
+        )
+
+    def run_until(self, t: float) -> None:
+        self.loop.resume()
+        self.loop.hold_at(t)
+
+    def positions(self, namespace: str = "") -> np.ndarray:
+        _, q, _, _ = self.loop.probe.recordings[namespace].arrays()
+        return q[-1]
+
+    def gains(self, namespace: str = "") -> np.ndarray:
+        config = self.loop.probe.controller_config(
+            self._controllers[namespace], namespace, self.loop.group.check_alive
+        )
+        if config.get("kp") is None:
+            raise RuntimeError("the gains are not designed yet (no state answered)")
+        return np.array(config["kp"], dtype=float)
+
+    def set_controller(self, namespace: str, changes: Mapping[str, Any]) -> None:
+        _set(self.loop, in_namespace(namespace, self._controllers[namespace]), dict(changes))
+
+    def set_plant(self, changes: Mapping[str, Any]) -> None:
+        _set(self.loop, "sim_bridge", dict(changes))
+
+
+def _drive(loop: RunLoop, scenario: Scenario, duration: float, results: list[RunResult]) -> None:
+    """Send each robot's reference, run to each scheduled change (one robot only) and
+    apply it there, run to the end."""
     setups = scenario.setups()
-    models = [setup_model(s) for s in setups]
+    models = [values.controller_model(s.controller, s.robot, s.parameters) for s in setups]
     trajectories = [_reference(s, m.n, duration) for s, m in zip(setups, models, strict=True)]
     for s, model, traj in zip(setups, models, trajectories, strict=True):
-        loop.probe.send_reference(
-            list(model.joint_names),
+        loop.send_reference(
+            s.name,
+            model.joint_names,
             traj.positions,
             traj.times,
             velocities=traj.velocities,
             accelerations=traj.accelerations,
-            namespace=s.name,
         )
-    loop.resume()  # every reference acknowledged: only now does the world run
-    result, traj, n = results[0], trajectories[0], models[0].n
     changes = scenario.changes_within(duration)
-    estimate = per_joint(scenario.parameters.get("gravity_estimate", 0.0), n, "u")
-    kp = scenario.parameters.get("kp", 100.0)
+    result, traj, first = results[0], trajectories[0], setups[0]
+    ns = first.name
+    estimate = None
+    loop.run_until(changes[0].at if changes else duration)
     for k, change in enumerate(changes):
-        loop.hold_at(change.at)
-        _, q, _, _ = loop.probe.recording.arrays()
+        q = loop.positions(ns)
         controller = dict(change.controller)
-        kp = controller.get("kp", kp)
         if change.update == "iterative_gravity":
-            # u_i = K_P (q_d − q_e,i) + u_{i−1}  (THEORY.md §2), q_d the last point
-            estimate = per_joint(kp, n, "kp") * (traj.positions[-1] - q[-1]) + estimate
+            if estimate is None:  # the controller's u at the start
+                given = values.controller_values(first.controller, first.robot, first.parameters)
+                estimate = per_joint(given["gravity_estimate"], len(q), "gravity_estimate")
+            # q_d the reference's last point, K_P the gains in force
+            estimate = iterative_gravity_estimate(loop.gains(ns), traj.positions[-1], q, estimate)
             controller["gravity_estimate"] = estimate.tolist()
         result.events.append(
-            {"t": change.at, "q": q[-1].tolist(), "controller": controller, **change.plant}
+            {"t": change.at, "q": q.tolist(), "controller": controller, **change.plant}
         )
-        _set(loop, scenario.controller, controller)
         nxt = changes[k + 1].at if k + 1 < len(changes) else duration
-        _set(loop, "sim_bridge", {**change.plant, "pause_at": nxt})
-        loop.resume()
-    loop.hold_at(duration)
+        loop.set_controller(ns, controller)
+        loop.set_plant({**change.plant, "pause_at": nxt})
+        loop.run_until(nxt)
     for s, r in zip(setups, results, strict=True):
-        _, q, _, _ = loop.probe.recordings[s.name].arrays()
-        r.events.append({"t": duration, "q": q[-1].tolist(), "end": True})
-
-
-def setup_model(setup: RobotSetup) -> RobotModel:
-    """The robot's model as its controller builds it: from the robot parameters among its
-    ``parameters`` (``urdf_path`` with ``package_paths`` and ``xacro_args``, ``joints``,
-    ``effort_limits``) over the built-in ``robot``."""
-    defaults = {p.name: p.default for p in params.ROBOT_PARAMETERS}
-    given = {k: v for k, v in setup.parameters.items() if k in defaults}
-    return params.robot_model(
-        params.ParamValues(params.ROBOT_PARAMETERS, {**defaults, "robot": setup.robot, **given})
-    )
+        r.events.append({"t": duration, "q": loop.positions(s.name).tolist(), "end": True})
 
 
 def _reference(setup: RobotSetup, n: int, duration: float) -> Trajectory:

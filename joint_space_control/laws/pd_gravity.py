@@ -58,3 +58,15 @@ def integrate_error(
     with np.errstate(divide="ignore"):
         bound = np.where(gains.ki > 0, effort_limits / gains.ki, np.inf)
     return np.where(gains.ki > 0, np.clip(updated, -bound, bound), 0.0)
+
+
+def iterative_gravity_estimate(
+    kp: np.ndarray, q_d: np.ndarray, q_e: np.ndarray, previous: np.ndarray
+) -> np.ndarray:
+    r"""The next constant of the iterative gravity estimation (THEORY.md §2):
+
+        u_i = K_P (q_d − q_e,i) + u_{i−1}      [N·m]
+
+    at the equilibrium q_e,i the loop τ = u_{i−1} + K_P (q_d − q) − K_D q̇ came to rest in;
+    u_i → g(q_d) and q_e,i → q_d when every K_P,i > α."""
+    return kp * (q_d - q_e) + previous

@@ -1,11 +1,12 @@
-"""Closed loops of real nodes on robot descriptions nobody here wrote (tests/corpus.py).
+"""The ROS engine and the in-process engine are the same loop, bit for bit: one test per law,
+on robot descriptions nobody here wrote (tests/corpus.py).
 
-Every corpus robot is checked in process against the defaults (tests/unit/test_corpus.py);
-here a few of them run as separate node processes in lockstep:
-- PD + g(q) on the controller's defaults alone (gains from the default ω_n/ζ design) settles a
-  0.05 rad step to < 1e-3 rad within 4 s of simulated time;
-- inverse dynamics (eq. 15) reproduces the second-order overshoot and 2 % settling time of
-  its ω_n/ζ on every joint, with the tolerances of test_inverse_dynamics_loop.py.
+The node processes (sim_bridge in lockstep, the controller, the recorder) and the in-process
+engine (:mod:`joint_space_control.experiments.inprocess`: the same plant, controller objects
+and sub-step loop, no ROS graph) run the same step of a corpus robot from the controllers'
+parameters; every recorded ``~/state`` row (q_d … τ, the joint state answered) is equal to
+the last bit, and so are the metrics of the analysis. The theory itself is checked on the
+in-process engine (tests/unit/test_inprocess.py).
 """
 
 from __future__ import annotations
@@ -13,8 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from joint_space_control.analysis.metrics import second_order_prediction, step_metrics_per_joint
+from joint_space_control.analysis.run_metrics import analyze_bag
+from joint_space_control.experiments.equivalence import differences
+from joint_space_control.experiments.inprocess import InProcessLoop
 from joint_space_control.experiments.loop import ClosedLoop
+from joint_space_control.experiments.scenario import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from tests.corpus import BY_NAME, PACKAGE_PATHS
@@ -24,48 +28,49 @@ from .conftest import next_domain_id
 
 pytestmark = pytest.mark.integration
 
-T_S = 1e-3  # control period [s]
+LAWS = {
+    # PD + g(q) on the controller's defaults alone: gains designed from the default ω_n, ζ
+    "pd_gravity": ("kinova", "pd_gravity_controller", {}),
+    "inverse_dynamics": (
+        "ur5",
+        "inverse_dynamics_controller",
+        {"law": "inverse_dynamics", "omega_n": 10.0, "zeta": 0.6},
+    ),
+}
+DURATION = 1.5
 
 
-def corpus_loop(tmp_path, name: str, controller: str, controller_params: dict) -> ClosedLoop:
+@pytest.mark.parametrize("law", list(LAWS))
+def test_ros_and_in_process_engines_record_the_same_loop(tmp_path, law):
+    name, controller, law_params = LAWS[law]
     robot = BY_NAME[name]
     model = RobotModel(resolve_robot(urdf_path=str(robot.path), package_paths=PACKAGE_PATHS))
     q0, target = step_inside_limits(model)
-    loop = ClosedLoop(
-        tmp_path / name,
-        next_domain_id(),
-        name,
-        controller,
-        controller_params={**robot.params(), **controller_params},
-        sim_params={**robot.params(), "initial_positions": q0.tolist()},
-    )
-    loop.model, loop.q0, loop.target = model, q0, target
-    return loop
+    params = {**robot.params(), **law_params}
+    sim = {**robot.params(), "initial_positions": q0.tolist(), "pause_at": DURATION}
+    joints, reference = list(model.joint_names), [target.tolist()]
 
+    ros_bag = tmp_path / "ros"
+    with ClosedLoop(
+        tmp_path / "logs", next_domain_id(), name, controller, params, sim, record=ros_bag
+    ) as loop:
+        loop.start(joints, reference)
+        loop.hold_at(DURATION)
+        loop.settle_recording()
+    local_bag = tmp_path / "inprocess"
+    local = InProcessLoop([RobotSetup("", name, {}, controller, params, {})], sim, local_bag)
+    try:
+        local.send_reference("", joints, reference, [0.0])
+        local.run_until(DURATION)
+    finally:
+        local.close()
 
-@pytest.mark.parametrize("name", ["kinova", "z1"])
-def test_pd_gravity_on_its_defaults_settles_a_step(tmp_path, name):
-    with corpus_loop(tmp_path, name, "pd_gravity_controller", {}) as loop:
-        loop.start(loop.model.joint_names, [loop.target.tolist()])
-        loop.run_until(4.0)
-        q, _ = loop.final_state()
-    error = np.max(np.abs(q - loop.target))
-    assert error < 1e-3, (name, error)
-    assert np.max(np.abs(q - loop.q0)) > 0.01
-
-
-@pytest.mark.parametrize("name", ["ur5", "xarm7", "so101"])
-def test_inverse_dynamics_is_the_second_order_theory(tmp_path, name):
-    omega_n, zeta = 10.0, 0.6
-    params = {"law": "inverse_dynamics", "omega_n": omega_n, "zeta": zeta}
-    with corpus_loop(tmp_path, name, "inverse_dynamics_controller", params) as loop:
-        loop.start(loop.model.joint_names, [loop.target.tolist()])
-        loop.run_until(2.0)
-        t, q, _, _ = loop.probe.recording.arrays()
-    theory = second_order_prediction(omega_n, zeta)
-    for j, m in enumerate(step_metrics_per_joint(t, q, targets=loop.target, t_step=0.0)):
-        joint = loop.model.joint_names[j]
-        assert abs(m.overshoot_percent - theory["overshoot_percent"]) < 1.0, (joint, m)
-        ts2 = theory["settling_time_2"]
-        assert abs(m.settling_time_2 - ts2) <= max(0.05 * ts2, T_S), (joint, m, ts2)
-        assert m.abs_steady_state_error < 1e-4, (joint, m)
+    (ros,), (mine,) = analyze_bag(ros_bag).controllers, analyze_bag(local_bag).controllers
+    assert len(mine.state.stamp) == round(DURATION * 1000) + 1  # every state, 0 … 1.5 s
+    np.testing.assert_array_equal(ros.state.stamp, mine.state.stamp)
+    assert set(ros.state.rows) == set(mine.state.rows)
+    for field, rows in ros.state.rows.items():
+        np.testing.assert_array_equal(rows, mine.state.rows[field], err_msg=field)
+    assert differences(ros.metrics, mine.metrics) == []
+    # and the loop did something: the arm moved towards its target
+    assert np.max(np.abs(mine.state.rows["q"][-1] - q0)) > 0.01

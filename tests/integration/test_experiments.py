@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from joint_space_control.analysis.metrics import second_order_prediction
+from joint_space_control.experiments.equivalence import compare_experiments
 from joint_space_control.experiments.scenario import available
 
 from .conftest import interrupt_once_running
@@ -111,12 +112,17 @@ def _chunks(parts: int = 3) -> list[list[str]]:
 
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("names", _chunks(), ids=lambda names: f"{names[0]}..")
-def test_every_scenario_runs_in_its_short_form(tmp_path, names):
+def test_every_scenario_runs_in_its_short_form_and_both_engines_agree(tmp_path, names):
+    """Every scenario's short form on the ROS engine (the nodes as processes, its results
+    page), then on the in-process engine: the same check texts and verdicts, and every
+    run's metrics bit for bit, apart from what only the recording's clock decides
+    (equivalence.RECORDING_KEYS)."""
     docs = tmp_path / "docs"
-    result = jsc(*names, "--short", "--out", str(tmp_path), "--report", str(docs), timeout=900)
+    ros, local = tmp_path / "ros", tmp_path / "inprocess"
+    result = jsc(*names, "--short", "--out", str(ros), "--report", str(docs), timeout=900)
     assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-4000:]
     for name in names:
-        verdict = json.loads((tmp_path / name / "result.json").read_text())
+        verdict = json.loads((ros / name / "result.json").read_text())
         assert verdict["errors"] == [], (name, verdict["errors"])
         for run in verdict["runs"]:
             report = Path(run["dir"]) / "report"
@@ -127,6 +133,15 @@ def test_every_scenario_runs_in_its_short_form(tmp_path, names):
     for link in [line for line in page.splitlines() if line.startswith("![")]:
         target = link[link.index("](") + 2 : -1]
         assert (docs / target).is_file(), target
+
+    result = jsc(
+        *names, "--short", "--out", str(local), "--engine", "inprocess",
+        "--scheduler", "threads", "--jobs", "1", timeout=900,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-4000:]
+    assert "engine inprocess" in result.stdout
+    for name in names:
+        assert compare_experiments(ros / name, local / name) == [], name
 
 
 def test_ctrl_c_stops_every_node_of_a_running_experiment(tmp_path):

@@ -13,18 +13,15 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from joint_space_control.control.pd_gravity import PDConfig, PDGravityController
+from joint_space_control.experiments.inprocess import InProcessLoop
+from joint_space_control.experiments.scenario import RobotSetup
 from joint_space_control.laws.gains import (
     DEFAULT_OMEGA_N,
-    DEFAULT_ZETA,
-    choose_gains,
     pd_gains_from_second_order,
 )
-from joint_space_control.laws.pd_gravity import GravityCompensation
 from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot, urdf_facts
-from joint_space_control.trajectories.reference import Trajectory
 from sim_bridge.plant import Plant
 from tests.corpus import BY_NAME, CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS, floating_g1
 
@@ -247,37 +244,26 @@ def step_inside_limits(model: RobotModel, size: float = 0.05) -> tuple[np.ndarra
 
 @pytest.mark.parametrize("robot", CORPUS, ids=lambda r: r.name)
 def test_default_pd_gravity_gains_settle_a_step_on_every_corpus_robot(robot):
-    """In process (the controller object + plant, no ROS), as the lockstep loop runs it:
-    PD + g(q) with the controllers' default gains (nothing given: ω_n = 10 rad/s, ζ = 1
+    """On the in-process engine (the plant and controller objects of the lockstep loop, no
+    ROS): PD + g(q) with the controllers' default gains (nothing given: ω_n = 10 rad/s, ζ = 1
     designed on B̂_ii(q₀) at the first step) settles a 0.05 rad step to < 1e-3 rad within 4 s
     of simulated time at 1 kHz, torques clamped to the limits."""
     spec = resolve_robot(urdf_path=str(robot.path), package_paths=PACKAGE_PATHS)
     model = RobotModel(spec)
     q0, target = step_inside_limits(model)
-    limits = model.effort_limits
-    n, zero = model.n, np.zeros(model.n)
-    choice = choose_gains(n, 0.0, 0.0, 0.0, DEFAULT_ZETA)  # nothing given
-    config = PDConfig(model, None, GravityCompensation.FULL, zero, choice, zero)
-    controller = PDGravityController(config, limits)
-    controller.add_trajectory(Trajectory.build(0.0, np.array([0.0]), target[None, :]))
-    plant = Plant(
-        spec,
-        model.joint_names,
-        initial_positions=q0,
-        locked_positions=model.locked_positions,
-        effort_limits=limits,
-    )
+    setup = RobotSetup("", robot.name, {}, "pd_gravity_controller", robot.params(), {})
+    loop = InProcessLoop([setup], {**robot.params(), "initial_positions": q0.tolist()})
     try:
-        for k in range(4000):
-            s = plant.state()
-            plant.step(controller.step(k * 1e-3, s.q, s.dq).tau)
-        final = plant.state()
+        loop.send_reference("", model.joint_names, [target.tolist()], [0.0])
+        loop.run_until(4.0)
+        controller = loop.controllers[0].core
+        final_q = loop.positions()
     finally:
-        plant.close()
+        loop.close()
     # the gains in force are the default design at the first measured configuration
     expected = pd_gains_from_second_order(np.diag(model.inertia(q0)), DEFAULT_OMEGA_N, 1.0)
     np.testing.assert_allclose(controller.config.gains.kp, expected.kp, rtol=1e-12)
     np.testing.assert_allclose(controller.q0, q0, atol=1e-12)
-    error = np.max(np.abs(final.q - target))
+    error = np.max(np.abs(final_q - target))
     assert error < 1e-3, (robot.name, error, robot.why)
-    assert np.max(np.abs(final.q - q0)) > 0.01  # it moved
+    assert np.max(np.abs(final_q - q0)) > 0.01  # it moved
