@@ -456,6 +456,16 @@ def test_a_second_run_of_the_command_resumes_its_study(tmp_path):
     assert sum("finished" in m and m.strip().endswith("/8 finished") for m in logs) == 3
 
 
+def test_the_command_runs_its_batches_and_says_so(tmp_path):
+    """``--batch`` reaches the study (the report's sampler line); a pool larger than the
+    batch is told it idles."""
+    logs: list[str] = []
+    pool = lambda jobs, scheduler, log: ThreadPool(3, scheduler, log)  # noqa: E731
+    tune_cli.run(options(tmp_path, trials=3, batch=2), pool, theory_run, log=logs.append)
+    assert any(m.startswith("note: 3 workers, batches of 2 trials: 1 idle") for m in logs)
+    assert "TPE, seed 0, 3 trials in batches of 2" in (tmp_path / "out" / "report.md").read_text()
+
+
 @pytest.mark.parametrize(
     "argv, words",
     [
@@ -463,6 +473,7 @@ def test_a_second_run_of_the_command_resumes_its_study(tmp_path):
         (["--spec", "overshoot<5"], "malformed clause"),
         (["--spec", SPEC, "--law", "pid"], "--law for inverse_dynamics sets 'law'"),
         (["--spec", SPEC, "--trials", "0"], "--trials must be >= 1"),
+        (["--spec", SPEC, "--batch", "0"], "--batch must be >= 1"),
         (["--spec", SPEC, "--omega-n", "10:1"], "--omega-n must be LO:HI"),
         (["--spec", SPEC, "--trials", "x"], "invalid int value"),
         (["--spec", SPEC, "--controller", "pid"], "invalid choice"),
