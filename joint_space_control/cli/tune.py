@@ -15,6 +15,7 @@ from typing import Any
 from joint_space_control.analysis.spec import allowed
 from joint_space_control.tuning.problem import CONTROLLERS, DEFAULT_DURATION, DEFAULT_STEP
 from joint_space_control.tuning.space import GAINS, OMEGA_N_RANGE, ZETA_RANGE, parse_range
+from joint_space_control.tuning.study import BATCH
 
 PROG = "jsc tune"
 
@@ -57,6 +58,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--trials", type=int, default=30, help="finished trials in all (default 30)")
     p.add_argument("--jobs", type=int, default=2, help="workers of the local pool (default 2)")
+    p.add_argument(
+        "--batch",
+        type=int,
+        default=BATCH,
+        help=f"trials asked, run and told together (default {BATCH}): a seeded study "
+        "depends on it, not on --jobs or the order runs finish in; workers beyond it idle",
+    )
     p.add_argument(
         "--scheduler",
         default=None,
@@ -132,6 +140,7 @@ def _handle(args: argparse.Namespace) -> int:
             law=args.law,
             trials=args.trials,
             jobs=args.jobs,
+            batch=args.batch,
             scheduler=args.scheduler,
             out=args.out,
             step=args.step,

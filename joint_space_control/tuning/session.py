@@ -31,6 +31,7 @@ from joint_space_control.tuning.problem import (
 )
 from joint_space_control.tuning.space import OMEGA_N_RANGE, ZETA_RANGE, SearchSpace
 from joint_space_control.tuning.study import (
+    BATCH,
     INTERRUPTED,
     best_trial,
     fail_stale,
@@ -64,6 +65,9 @@ class TuneOptions:
     """The start [rad] (None: 0 inside the limits)."""
     design: bool = True
     """A new study's first trial is the theory's design for the spec (tuning/design.py)."""
+    batch: int = BATCH
+    """Trials asked, run and told together: the study depends on it, not on ``jobs``
+    (tuning/study.py)."""
 
 
 @dataclass
@@ -100,7 +104,11 @@ def prepare(options: TuneOptions) -> Prepared:
             f"--law for {options.controller} sets '{law_name}': one of {', '.join(laws)}, "
             f"got {options.law!r}"
         )
-    for what, value, low in (("--trials", options.trials, 1), ("--jobs", options.jobs, 1)):
+    for what, value, low in (
+        ("--trials", options.trials, 1),
+        ("--jobs", options.jobs, 1),
+        ("--batch", options.batch, 1),
+    ):
         if value < low:
             raise ValueError(f"{what} must be >= {low}, got {value}")
     if not (options.duration > 0 and math.isfinite(options.duration)):
@@ -215,8 +223,22 @@ def run(
         log(f"{stale} trial(s) left running by an earlier session marked failed (interrupted)")
     if done:
         log(f"resuming study '{prepared.study_name}': {done} of {o.trials} trials finished")
+    if in_flight > o.batch:
+        log(
+            f"note: {in_flight} workers, batches of {o.batch} trials: {in_flight - o.batch} "
+            f"idle (--batch {in_flight} or more uses them all; another --batch is another "
+            "study)"
+        )
     run_trials(
-        study, prepared.space, prepared.problem, submit, prepared.out, o.trials, in_flight, log
+        study,
+        prepared.space,
+        prepared.problem,
+        submit,
+        prepared.out,
+        o.trials,
+        in_flight,
+        log,
+        batch=o.batch,
     )
     return study
 
@@ -332,7 +354,7 @@ def write_outputs(prepared: Prepared, study: optuna.Study, pool: str, elapsed: f
         "search space": space.describe(),
         "step": f"q0 = {_fmt(problem.q0)} → q_d = {_fmt(problem.target)} rad at t = 0, "
         f"{problem.duration:g} s simulated (lockstep)",
-        "sampler": f"TPE, seed {o.seed}, {o.trials} trials",
+        "sampler": f"TPE, seed {o.seed}, {o.trials} trials in batches of {o.batch}",
         "runs": pool,
         "study": f"`{prepared.study_name}` in `{prepared.storage}`",
         "this session": f"{elapsed:.0f} s",

@@ -2,7 +2,7 @@ r"""The Optuna study of ``jsc tune``: ask, run, judge, tell. No ROS here: a tria
 through ``submit(label, scenario, run_dir) -> Future[list[RunResult]]`` (the CLI's Dask pool
 with ``execute_run``; a stand-in in the unit tests).
 
-- Sampler: TPE (seeded; ``constant_liar`` so that the trials in flight together differ), with
+- Sampler: TPE (seeded; ``constant_liar`` so that the trials of a batch differ), with
   the specification's clauses as constraints: clause k's normalised violation
   c_k = (value − bound)/|bound| (``<=``; the other way round for ``>=``), ≤ 0 when met
   (analysis/spec.py), set on each trial before it is told (``Trial.set_constraint``, what
@@ -12,10 +12,28 @@ with ``execute_run``; a stand-in in the unit tests).
   for every run, met or not, so it leads the search towards the specification while none
   meets it, and once some do it maximises the smallest margin (the design furthest inside
   the specification, not one on its edge).
+- Order: a seeded study is reproducible, the same trials with the same values in the same
+  order whatever the number of workers and whichever run finishes first. What TPE suggests
+  depends on what the study holds when a trial is asked: the trials told (their values and
+  constraints) and, with ``constant_liar``, the ones still running. Telling each trial as its
+  run finished, and asking the next one then, made both depend on the machine: on a pool of
+  2, trial 4 was asked with three of trials 0–3 told and the fourth running, which one the
+  runs decided (on 1 worker: all four told). So the study goes in batches of ``batch`` trials
+  (``BATCH``, ``--batch``), a number that is the study's, not the pool's: ask the batch's
+  trials one after the other (the ones asked before a trial are running: the same lie at the
+  same place every time), run them ``in_flight`` at a time in any order, wait for them all,
+  then tell them in trial-number order (and log them so) before asking the next batch. Every
+  ask then sees the same trials, and the sampler's seed and its random draws are consumed in
+  the same order; a run's own numbers are the same anywhere (lockstep). The price: a batch
+  waits for its slowest run, and the workers beyond ``batch`` idle; a trial is suggested
+  knowing the batches before its own, not its own batch's finished runs.
 - Storage: any Optuna storage URL (``sqlite:///<out>/study.db``), ``load_if_exists``: a study
   interrupted resumes; ``trials`` counts the finished trials (complete, or failed runs), so a
   resumed study runs only what is missing. Trials left running by a killed session and the
-  ones Ctrl-C interrupts are failed with ``interrupted`` and not counted.
+  ones Ctrl-C interrupts are failed with ``interrupted`` and not counted; the runs of the
+  interrupted batch that had finished are told first (in order), so no finished run is
+  lost. A resumed study is reproducible from what it holds (its seed is ``seed`` plus the
+  trials stored), not equal to the study that was not interrupted.
 """
 
 from __future__ import annotations
@@ -24,6 +42,7 @@ import shutil
 import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, wait
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -38,8 +57,12 @@ from joint_space_control.tuning.space import SearchSpace
 Submit = Callable[[str, Any, Path], Future]
 
 INTERRUPTED = "interrupted"
-#: The random trials TPE starts with: a quarter of the budget, between 4 and 10.
+#: The random trials TPE starts with: a quarter of the budget, between 4 and 10 (told; with
+#: batches, the batch that reaches them is random to its end).
 MIN_STARTUP, MAX_STARTUP = 4, 10
+#: Trials asked, run and told together (``jsc tune --batch``): the study depends on it, not
+#: on the number of workers; twice the default pool of 2, so each batch keeps it busy twice.
+BATCH = 4
 
 
 def startup_trials(trials: int) -> int:
@@ -56,7 +79,10 @@ def open_study(
     """Create the study, or load it (``load_if_exists``) when ``settings`` (robot, controller,
     spec, space, step, duration) are those it was made with; raises
     :class:`SettingsMismatchError` otherwise. The sampler's seed is ``seed`` plus the number of
-    trials already stored, so that a resumed study does not draw its first points again."""
+    trials already stored, so that a resumed study does not draw its first points again.
+    ``constant_liar`` counts the running trials as the worst so far: under
+    :func:`run_trials` those are the trials of the batch asked before, a given set, so the
+    lie is the same on every run of the study and spreads the batch's trials apart."""
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(
         storage=storage, study_name=name, direction="minimize", load_if_exists=True
@@ -123,6 +149,30 @@ def trial_dir(out: Path, number: int) -> Path:
     return out / "trials" / f"trial_{number:04d}"
 
 
+@dataclass(eq=False)
+class _Run:
+    """A trial of the batch: its scenario and directory, then its run's future, when it was
+    submitted and when its run ended (the future's callback: also when no ``wait`` saw it
+    yet), and whether it was told."""
+
+    trial: optuna.Trial
+    scenario: Any
+    target: Path
+    future: Future | None = None
+    started: float = 0.0
+    ended: float | None = None
+    told: bool = False
+
+    def finished(self) -> bool:
+        """Its run ended (not cancelled): its result, or its failure, can be told."""
+        return self.future is not None and self.future.done() and not self.future.cancelled()
+
+    def seconds(self) -> float:
+        """From its submission to the end of its run (now, if the future's callback, which
+        Future runs after waking its waiters, has not yet)."""
+        return (time.monotonic() if self.ended is None else self.ended) - self.started
+
+
 def run_trials(
     study: optuna.Study,
     space: SearchSpace,
@@ -132,53 +182,98 @@ def run_trials(
     trials: int,
     in_flight: int,
     log: Callable[[str], None] = print,
+    batch: int = BATCH,
 ) -> int:
-    """Ask and run trials, ``in_flight`` at a time, until ``trials`` are finished; how many
-    this call finished. On KeyboardInterrupt the trials in flight are failed (marked
-    ``interrupted``) and the interrupt propagates (the caller cancels its pool)."""
+    """Run the study to ``trials`` finished trials, ``batch`` at a time (see the module's
+    docstring): ask the batch's trials, run them ``in_flight`` at a time, then tell them in
+    trial-number order; how many this call finished. Whatever stops it (KeyboardInterrupt:
+    the caller then cancels its pool) the batch's runs that finished are still told, in
+    order, the others failed and marked ``interrupted``, and the exception propagates."""
+    if batch < 1:
+        raise ValueError(f"the batch must be >= 1 trial, got {batch}")
     finished = sum(is_finished(t) for t in study.trials)
     distributions = space.distributions()
-    pending: dict[Future, tuple[optuna.Trial, float]] = {}
-    asked: list[optuna.Trial] = []  # asked, not yet told
+    runs: list[_Run] = []  # the batch
     done_here = 0
+
+    def tell(run: _Run) -> None:
+        nonlocal finished, done_here
+        assert run.future is not None
+        run.trial.set_user_attr("seconds", run.seconds())
+        _tell(study, problem, run.trial, run.future, log)
+        run.told = True
+        finished += 1
+        done_here += 1
+        log(f"  {finished}/{trials} finished")
+
     try:
-        while finished + len(pending) < trials or pending:
-            while len(pending) < max(1, in_flight) and finished + len(pending) < trials:
+        while finished < trials:
+            runs = []
+            for _ in range(min(batch, trials - finished)):
                 trial = study.ask(distributions)
-                asked.append(trial)
-                target = trial_dir(out, trial.number)
-                if target.exists():  # a trial number of an earlier, deleted study
-                    shutil.rmtree(target)
-                target.mkdir(parents=True)
-                gains = space.node_gains(trial.params)
-                data = problem.scenario_data(gains, title=f"trial {trial.number}")
-                (target / "scenario.yaml").write_text(yaml.safe_dump(data, sort_keys=False))
-                scenario = problem.scenario(
-                    gains, f"trial_{trial.number:04d}", target / "scenario.yaml"
-                )
-                trial.set_user_attr("run_dir", str(target))
-                omega, zeta = space.second_order(trial.params)
-                trial.set_user_attr("omega_n", omega.tolist())
-                trial.set_user_attr("zeta", zeta.tolist())
-                pending[submit(f"trial {trial.number}", scenario, target)] = (
-                    trial,
-                    time.monotonic(),
-                )
-            done, _ = wait(list(pending), return_when=FIRST_COMPLETED)
-            for future in done:
-                trial, started = pending.pop(future)
-                trial.set_user_attr("seconds", time.monotonic() - started)
-                _tell(study, problem, trial, future, log)
-                asked.remove(trial)
-                finished += 1
-                done_here += 1
-                log(f"  {finished}/{trials} finished")
+                # in the batch before it is prepared: failed if preparing it fails
+                runs.append(_Run(trial, None, trial_dir(out, trial.number)))
+                runs[-1].scenario = _prepare(space, problem, trial, runs[-1].target)
+            _run_batch(runs, submit, in_flight)
+            for run in runs:  # in trial-number order, whichever run finished first
+                tell(run)
     except BaseException:
-        for trial in asked:
-            trial.set_user_attr(INTERRUPTED, True)
-            study.tell(trial, state=TrialState.FAIL, skip_if_finished=True)
+        for run in runs:
+            if run.told or _is_told(study, run.trial):
+                continue
+            if run.finished():  # its result is kept
+                try:
+                    tell(run)
+                    continue
+                except Exception:  # noqa: BLE001 - telling it failed: failed as the others
+                    if _is_told(study, run.trial):
+                        continue
+            run.trial.set_user_attr(INTERRUPTED, True)
+            study.tell(run.trial, state=TrialState.FAIL, skip_if_finished=True)
         raise
     return done_here
+
+
+def _prepare(space: SearchSpace, problem: TuneProblem, trial: optuna.Trial, target: Path) -> Any:
+    """The trial's directory, its ``scenario.yaml`` and its second-order numbers (user
+    attributes); the scenario to run."""
+    if target.exists():  # a trial number of an earlier, deleted study
+        shutil.rmtree(target)
+    target.mkdir(parents=True)
+    gains = space.node_gains(trial.params)
+    data = problem.scenario_data(gains, title=f"trial {trial.number}")
+    (target / "scenario.yaml").write_text(yaml.safe_dump(data, sort_keys=False))
+    scenario = problem.scenario(gains, f"trial_{trial.number:04d}", target / "scenario.yaml")
+    trial.set_user_attr("run_dir", str(target))
+    omega, zeta = space.second_order(trial.params)
+    trial.set_user_attr("omega_n", omega.tolist())
+    trial.set_user_attr("zeta", zeta.tolist())
+    return scenario
+
+
+def _run_batch(runs: list[_Run], submit: Submit, in_flight: int) -> None:
+    """Run the batch, ``in_flight`` runs at a time in trial order (another one submitted as
+    soon as one finishes, so no run waits in the pool's queue and a trial's ``seconds`` is
+    its run's wall time), until every run ended; nothing is told here."""
+    queue = list(runs)
+    pending: set[Future] = set()
+    while queue or pending:
+        while queue and len(pending) < max(1, in_flight):
+            run = queue.pop(0)
+            run.started = time.monotonic()
+            run.future = submit(f"trial {run.trial.number}", run.scenario, run.target)
+            run.future.add_done_callback(lambda _, run=run: _ended(run))
+            pending.add(run.future)
+        _, pending = wait(pending, return_when=FIRST_COMPLETED)
+
+
+def _ended(run: _Run) -> None:
+    if run.ended is None:
+        run.ended = time.monotonic()
+
+
+def _is_told(study: optuna.Study, trial: optuna.Trial) -> bool:
+    return study._storage.get_trial(trial._trial_id).state.is_finished()
 
 
 def _tell(

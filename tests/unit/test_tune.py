@@ -31,7 +31,12 @@ from joint_space_control.tuning.study import (
     open_study,
     run_trials,
 )
-from tests.unit.tuning_fakes import FakeResult, FakeRunner, controller_metrics
+from tests.unit.tuning_fakes import (
+    FakeResult,
+    FakeRunner,
+    ReorderingRunner,
+    controller_metrics,
+)
 
 SPEC = "overshoot<=5, settling_2pct<=0.6"
 JOINTS = ("joint1", "joint2")
@@ -278,6 +283,45 @@ def test_an_interrupted_study_resumes_to_n_without_repeating_a_trial(tmp_path):
     assert len(points) == len(set(points)) == 12  # no point run twice
 
 
+def test_ctrl_c_keeps_the_finished_runs_of_its_batch_and_fails_the_others(tmp_path):
+    """Trials are told per batch, but a run that finished before Ctrl-C is not lost: the
+    interrupted batch (trials 4–7, asked together) tells trial 4, whose run had finished
+    when trial 5's submission was interrupted, and fails 5, 6 and 7 as interrupted."""
+    runner = FakeRunner(jobs=2)
+    futures = []
+
+    def submit_then_interrupt(label, scenario, target):
+        if len(futures) == 5:  # trial 5 (the second of the second batch)
+            futures[-1].result()  # trial 4's run has finished
+            raise KeyboardInterrupt
+        futures.append(runner.submit(label, scenario, target))
+        return futures[-1]
+
+    study = _study(tmp_path, 12)
+    logs: list[str] = []
+    with pytest.raises(KeyboardInterrupt):
+        run_trials(
+            study,
+            SearchSpace(JOINTS),
+            problem(),
+            submit_then_interrupt,
+            tmp_path,
+            12,
+            2,
+            logs.append,
+            batch=4,
+        )
+    runner.close()
+    states = [t.state for t in study.trials]
+    assert states == [TrialState.COMPLETE] * 5 + [TrialState.FAIL] * 3
+    assert [t.number for t in study.trials if t.user_attrs.get(INTERRUPTED)] == [5, 6, 7]
+    assert study.trials[4].user_attrs["seconds"] > 0
+    assert [line.split(":")[0] for line in logs if line.startswith("trial ")] == [
+        f"trial {n}" for n in range(5)
+    ]
+    assert logs[-1] == "  5/12 finished"
+
+
 def test_a_stored_study_refuses_other_settings(tmp_path):
     from joint_space_control.tuning.study import SettingsMismatchError
 
@@ -297,6 +341,42 @@ def test_a_failed_run_is_a_failed_trial_and_the_study_goes_on(tmp_path):
     assert "the simulator died" in study.trials[1].user_attrs["error"]
     assert len(study.trials) == 4  # a failed run counts as finished
     assert any("run FAILED" in line for line in logs)
+
+
+def _seeded_study(out: Path, submit, in_flight: int) -> tuple[list[tuple], list[str]]:
+    """A study of seed 7 and 11 trials (4 random, then TPE; trial 5's run fails) run with
+    ``in_flight`` runs at a time: each trial as (number, state, params, value, constraints)
+    in the order stored, and the log."""
+    out.mkdir()
+    study = _study(out, 11, seed=7)
+    logs: list[str] = []
+    run_trials(study, SearchSpace(JOINTS), problem(), submit, out, 11, in_flight, logs.append)
+    trials = [(t.number, t.state, t.params, t.value, t.constraints) for t in study.trials]
+    return trials, logs
+
+
+def test_a_seeded_study_is_the_same_whatever_the_workers_and_the_order_runs_finish_in(
+    tmp_path,
+):
+    """The issue's test: one seed, 1 worker, then 2 whose runs finish newest first (trial 0
+    last of its batch): the same trials with the same values in the same order, the same
+    log. Telling trials as they finish makes TPE's later suggestions differ."""
+    one = FakeRunner(jobs=1, fail={"trial 5"})
+    alone, alone_logs = _seeded_study(tmp_path / "one", one.submit, 1)
+    one.close()
+    two = ReorderingRunner(jobs=2, fail={"trial 5"})
+    shuffled, shuffled_logs = _seeded_study(tmp_path / "two", two.submit, 2)
+    two.close()
+    # the order was forced: some run finished before one submitted earlier
+    assert two.finished != two.submitted and sorted(two.finished) == sorted(two.submitted)
+    assert one.submitted == [f"trial {n}" for n in range(11)]
+    assert [t[0] for t in alone] == list(range(11))
+    assert alone[5][1] == TrialState.FAIL and alone[10][1] == TrialState.COMPLETE
+    for a, b in zip(alone, shuffled, strict=True):
+        assert a == b  # params and values exactly equal, not approximately
+    assert shuffled_logs == alone_logs
+    trial_lines = [line for line in alone_logs if line.startswith("trial ")]
+    assert [int(line.split(":")[0].split()[1]) for line in trial_lines] == list(range(11))
 
 
 # --------------------------------------------------------------------------- the command
@@ -376,6 +456,16 @@ def test_a_second_run_of_the_command_resumes_its_study(tmp_path):
     assert sum("finished" in m and m.strip().endswith("/8 finished") for m in logs) == 3
 
 
+def test_the_command_runs_its_batches_and_says_so(tmp_path):
+    """``--batch`` reaches the study (the report's sampler line); a pool larger than the
+    batch is told it idles."""
+    logs: list[str] = []
+    pool = lambda jobs, scheduler, log: ThreadPool(3, scheduler, log)  # noqa: E731
+    tune_cli.run(options(tmp_path, trials=3, batch=2), pool, theory_run, log=logs.append)
+    assert any(m.startswith("note: 3 workers, batches of 2 trials: 1 idle") for m in logs)
+    assert "TPE, seed 0, 3 trials in batches of 2" in (tmp_path / "out" / "report.md").read_text()
+
+
 @pytest.mark.parametrize(
     "argv, words",
     [
@@ -383,6 +473,7 @@ def test_a_second_run_of_the_command_resumes_its_study(tmp_path):
         (["--spec", "overshoot<5"], "malformed clause"),
         (["--spec", SPEC, "--law", "pid"], "--law for inverse_dynamics sets 'law'"),
         (["--spec", SPEC, "--trials", "0"], "--trials must be >= 1"),
+        (["--spec", SPEC, "--batch", "0"], "--batch must be >= 1"),
         (["--spec", SPEC, "--omega-n", "10:1"], "--omega-n must be LO:HI"),
         (["--spec", SPEC, "--trials", "x"], "invalid int value"),
         (["--spec", SPEC, "--controller", "pid"], "invalid choice"),

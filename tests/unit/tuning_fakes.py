@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -98,3 +99,93 @@ class FakeRunner:
 
 def finite(x) -> bool:
     return x is not None and math.isfinite(x)
+
+
+class ReorderingRunner:
+    """``submit`` of the study whose runs finish in an order forced on them, newest first,
+    not in the order submitted nor by chance: each run's result (or failure) is the
+    :class:`FakeRunner`'s, computed at once, but its future is resolved by a thread that
+    holds the futures until ``jobs`` of them wait (a pool with every worker busy) and then
+    resolves the newest one alone, the oldest staying held while newer ones are submitted
+    and resolved; held futures the caller waits on with fewer than ``jobs`` of them (the
+    last runs, or a caller waiting for all) are resolved too, newest first, one per wait.
+
+    No timer decides: a caller slow to submit its next run (asking Optuna takes a while)
+    must not see its runs finish in order. That the caller is blocked in
+    ``concurrent.futures.wait`` is seen on the futures themselves: ``wait`` puts one waiter
+    object on each future it waits for (CPython's ``Future._waiters``); a waiter on every held
+    future that was not there when the last one was resolved is a new wait. ``guard``
+    seconds without a submission resolve the held futures anyway (only if that detail
+    changed: slower then, never stuck). ``finished`` is the labels in the order resolved,
+    ``submitted`` in the order submitted."""
+
+    def __init__(self, jobs: int = 2, fail: set[str] | None = None, guard: float = 2.0):
+        self.jobs, self.guard = jobs, guard
+        self.runner = FakeRunner(jobs=1, fail=set(fail or ()))
+        self.submitted: list[str] = []
+        self.finished: list[str] = []
+        self._held: list[tuple[str, Future, list[FakeResult] | None, Exception | None]] = []
+        self._seen: list[object] = []  # waiters present when a future was resolved
+        self._last = time.monotonic()
+        self._closed = False
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._resolve, name="reorder", daemon=True)
+        self._thread.start()
+
+    def submit(self, label: str, scenario, target: Path) -> Future:
+        future: Future = Future()
+        try:
+            value, err = self.runner.run(label, scenario, target), None
+        except Exception as exc:  # noqa: BLE001 - the run's failure is the future's
+            value, err = None, exc
+        with self._cond:
+            self.submitted.append(label)
+            self._held.append((label, future, value, err))
+            self._last = time.monotonic()
+            self._cond.notify_all()
+        return future
+
+    def _waiters(self) -> list[object]:
+        return [w for _, f, _, _ in self._held for w in list(getattr(f, "_waiters", ()))]
+
+    def _waited_on(self) -> bool:
+        """The caller waits on every held future, in a wait not seen before."""
+        common = None
+        for _, f, _, _ in self._held:
+            ids = {id(w) for w in list(getattr(f, "_waiters", ()))}
+            common = ids if common is None else common & ids
+        seen = {id(w) for w in self._seen}
+        return bool(common and common - seen)
+
+    def _ready(self) -> bool:
+        if not self._held:
+            return self._closed
+        return (
+            self._closed
+            or len(self._held) >= self.jobs
+            or self._waited_on()
+            or time.monotonic() - self._last > self.guard
+        )
+
+    def _resolve(self) -> None:
+        while True:
+            with self._cond:
+                while not self._ready():
+                    self._cond.wait(0.002)
+                if not self._held:  # closed, nothing left
+                    return
+                label, future, value, err = self._held.pop()  # the newest
+                self.finished.append(label)
+                self._seen = self._waiters() + [w for w in list(future._waiters)]
+                self._last = time.monotonic()
+            if err is None:  # outside the lock: the waiter may submit at once
+                future.set_result(value)
+            else:
+                future.set_exception(err)
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        self._thread.join()
+        self.runner.close()
