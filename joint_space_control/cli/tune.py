@@ -9,6 +9,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +65,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=BATCH,
         help=f"trials asked, run and told together (default {BATCH}): a seeded study "
         "depends on it, not on --jobs or the order runs finish in; workers beyond it idle",
+    )
+    p.add_argument(
+        "--engine",
+        choices=("inprocess", "ros"),
+        default="inprocess",
+        help="where the trials run: inprocess (default; the plant and controller objects in "
+        "the worker, no ROS graph, the same numbers; the best trial is then confirmed on the "
+        "nodes before the parameter file is written) or ros (the nodes as processes)",
     )
     p.add_argument(
         "--scheduler",
@@ -141,6 +150,7 @@ def _handle(args: argparse.Namespace) -> int:
             trials=args.trials,
             jobs=args.jobs,
             batch=args.batch,
+            engine=args.engine,
             scheduler=args.scheduler,
             out=args.out,
             step=args.step,
@@ -184,11 +194,14 @@ def run(
     pool_class: Callable[..., Any] | None = None,
     task: Callable[..., Any] | None = None,
     log: Callable[[str], None] = lambda m: print(m, flush=True),
+    confirm: Callable[..., Any] | None = None,
 ) -> int:
     """The session: prepare, run the study on the pool, write the outputs; the exit code.
-    ``pool_class``/``task`` replace RunPool/execute_run (tests). Ctrl-C fails the trials in
-    flight, cancels the pool (their nodes stopped) and exits 130."""
-    from joint_space_control.tuning.session import prepare, write_outputs
+    ``pool_class``/``task`` replace RunPool/execute_run (tests), ``confirm`` the ROS run of
+    the best trial (``confirm(scenario, target)``; default: ``task`` on the ROS engine).
+    Ctrl-C fails the trials in flight, cancels the pool (their nodes stopped) and exits
+    130."""
+    from joint_space_control.tuning.session import confirm_best, prepare, write_outputs
     from joint_space_control.tuning.session import run as run_study
     from joint_space_control.tuning.study import SettingsMismatchError
 
@@ -202,7 +215,11 @@ def run(
         from joint_space_control.experiments.distributed import RunPool
         from joint_space_control.experiments.runner import execute_run
 
-        pool_class, task = RunPool, execute_run
+        pool_class, task = RunPool, partial(execute_run, engine=options.engine)
+        if confirm is None:
+            confirm = partial(execute_run, short=False, engine="ros")
+    if confirm is None:  # a stand-in task (tests): it is its own ROS engine
+        confirm = partial(_confirm_with, task)
     started = time.monotonic()
     problem = prepared.problem
     log(
@@ -251,7 +268,17 @@ def run(
         return 130
     finally:
         pool.close()
-    summary = write_outputs(prepared, study, description, time.monotonic() - started)
+    confirmation = None
+    if options.engine == "inprocess":
+        log("confirming the best trial on the ROS engine (the nodes as processes)")
+        try:
+            confirmation = confirm_best(prepared, study, confirm)
+        except KeyboardInterrupt:
+            print(f"\n{PROG}: interrupted", file=sys.stderr)
+            return 130
+        if confirmation is not None:
+            log(("" if confirmation.same else "warning: ") + confirmation.text)
+    summary = write_outputs(prepared, study, description, time.monotonic() - started, confirmation)
     best = summary.best
     if best is None:
         log(f"{PROG}: no trial completed; see {prepared.out / 'report.md'}")
@@ -268,3 +295,7 @@ def run(
     for path in summary.files:
         log(f"  {path}")
     return 0 if summary.met else 1
+
+
+def _confirm_with(task: Callable[..., Any], scenario: Any, target: Any) -> Any:
+    return task(scenario, target, False)

@@ -5,7 +5,9 @@ caller (the CLI: Dask's RunPool with ``execute_run``), so this runs without ROS 
 
 from __future__ import annotations
 
+import json
 import math
+import shutil
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, field
@@ -16,7 +18,8 @@ import numpy as np
 import optuna
 from optuna.trial import FrozenTrial, TrialState
 
-from joint_space_control.analysis.spec import fmt_value, parse_spec
+from joint_space_control.analysis.spec import fmt_value, judge, parse_spec
+from joint_space_control.experiments.equivalence import differences
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import builtin_robots, resolve_robot
 from joint_space_control.tuning import figures, outputs
@@ -68,6 +71,10 @@ class TuneOptions:
     batch: int = BATCH
     """Trials asked, run and told together: the study depends on it, not on ``jobs``
     (tuning/study.py)."""
+    engine: str = "inprocess"
+    """Where the trials run: ``inprocess`` (the plant and controller objects in the worker,
+    no ROS graph; the best trial is then confirmed on the ROS engine) or ``ros`` (the
+    nodes as processes, every trial)."""
 
 
 @dataclass
@@ -295,7 +302,63 @@ def closest_clause(problem: TuneProblem, best: outputs.TrialRow) -> str:
     )
 
 
-def write_outputs(prepared: Prepared, study: optuna.Study, pool: str, elapsed: float) -> Summary:
+@dataclass
+class Confirmation:
+    """The best trial run again on the ROS engine: whether it gave the same."""
+
+    same: bool
+    text: str
+
+
+def confirm_best(
+    prepared: Prepared, study: optuna.Study, run: Callable[[Any, Path], list[Any]]
+) -> Confirmation | None:
+    """Run the best trial's scenario again with ``run(scenario, target)`` (the ROS engine)
+    into its ``ros_confirmation`` directory: the same values of every clause of the spec,
+    bit for bit, and (where both runs wrote one) the same ``metrics.json`` apart from what
+    only the recording's clock decides (experiments/equivalence.py). None without a best
+    trial."""
+    best = best_trial(study)
+    if best is None:
+        return None
+    run_dir = Path(best.user_attrs["run_dir"])
+    gains = prepared.space.node_gains(best.params)
+    scenario = prepared.problem.scenario(
+        gains, f"trial_{best.number:04d}_ros", run_dir / "scenario.yaml"
+    )
+    target = run_dir / "ros_confirmation"
+    shutil.rmtree(target, ignore_errors=True)
+    results = run(scenario, target)
+    errors = [r.error for r in results if r.error]
+    if errors:
+        return Confirmation(False, f"trial {best.number} failed on the ROS engine: {errors[0]}")
+    judgement = judge(prepared.problem.spec, results[0].controller)
+    found = differences([m.value for m in judgement.values], best.user_attrs["values"], "spec")
+    ours, theirs = run_dir / "report" / "metrics.json", target / "report" / "metrics.json"
+    if ours.is_file() and theirs.is_file():
+        found += differences(
+            json.loads(ours.read_text()), json.loads(theirs.read_text()), "metrics"
+        )
+    if found:
+        return Confirmation(
+            False,
+            f"trial {best.number} on the ROS engine differs from its in-process run: "
+            + "; ".join(found[:3]),
+        )
+    return Confirmation(
+        True,
+        f"trial {best.number} confirmed on the ROS engine (the nodes as processes): the "
+        "same metrics, bit for bit",
+    )
+
+
+def write_outputs(
+    prepared: Prepared,
+    study: optuna.Study,
+    pool: str,
+    elapsed: float,
+    confirmation: Confirmation | None = None,
+) -> Summary:
     """best_params.yaml, scenario.yaml, history.png, best_step.png and report.md."""
     problem, space, out = prepared.problem, prepared.space, prepared.out
     trials = sorted(study.trials, key=lambda t: t.number)
@@ -307,6 +370,7 @@ def write_outputs(prepared: Prepared, study: optuna.Study, pool: str, elapsed: f
     closest = None if best is None or met else closest_clause(problem, best)
     header: list[str] = []
     kp_kd = None
+    confirmed = confirmation is None or confirmation.same
     if best is not None:
         gains = space.node_gains(best.params)
         kp, kd = space.kp_kd(best.params)
@@ -320,11 +384,12 @@ def write_outputs(prepared: Prepared, study: optuna.Study, pool: str, elapsed: f
             + "; ζ = "
             + ", ".join(f"{z:.4g}" for z in best.zeta),
         ]
-        files.append(
-            outputs.write_text(
-                out / "best_params.yaml", outputs.params_yaml(problem, gains, header)
+        if confirmed:  # never a parameter file the nodes have not been seen to agree with
+            files.append(
+                outputs.write_text(
+                    out / "best_params.yaml", outputs.params_yaml(problem, gains, header)
+                )
             )
-        )
         scenario = outputs.scenario_yaml(problem, gains, header)
         files.append(outputs.write_text(out / "scenario.yaml", scenario))
     met_count = sum(r.state == "met" for r in rows)
@@ -355,13 +420,18 @@ def write_outputs(prepared: Prepared, study: optuna.Study, pool: str, elapsed: f
         "step": f"q0 = {_fmt(problem.q0)} → q_d = {_fmt(problem.target)} rad at t = 0, "
         f"{problem.duration:g} s simulated (lockstep)",
         "sampler": f"TPE, seed {o.seed}, {o.trials} trials in batches of {o.batch}",
+        "engine": {
+            "inprocess": "in process (the plant and controller objects, no ROS graph)",
+            "ros": "ROS (the nodes as processes)",
+        }[o.engine]
+        + (f"; {confirmation.text}" if confirmation is not None else ""),
         "runs": pool,
         "study": f"`{prepared.study_name}` in `{prepared.storage}`",
         "this session": f"{elapsed:.0f} s",
     }
     report = outputs.report_markdown(problem, rows, best, kp_kd, settings, closest, figs)
     files.append(outputs.write_text(out / "report.md", report))
-    return Summary(met, best, closest, files)
+    return Summary(met and confirmed, best, closest, files)
 
 
 def _fmt(x: np.ndarray) -> str:

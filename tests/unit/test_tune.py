@@ -434,6 +434,40 @@ def test_the_command_exits_0_and_writes_its_files_when_the_spec_is_met(tmp_path)
     assert s.parameters["omega_n"] == design["omega_n"]
 
 
+def test_the_best_trial_is_confirmed_on_the_ros_engine_before_the_parameter_file(tmp_path):
+    """Trials in process (the default engine), then the best one on the ROS engine: the
+    same values confirm it (said in the report); values that differ in the last bit leave
+    no parameter file and exit 1."""
+    logs: list[str] = []
+    confirmed: list[str] = []
+
+    def same(scenario, target):
+        confirmed.append(scenario.name)
+        return theory_run(scenario, target, False)
+
+    code = tune_cli.run(options(tmp_path, trials=5), ThreadPool, theory_run, logs.append, same)
+    assert code == 0 and len(confirmed) == 1 and confirmed[0].endswith("_ros")
+    assert any("confirmed on the ROS engine" in line for line in logs), logs
+    out = tmp_path / "out"
+    assert "confirmed on the ROS engine" in (out / "report.md").read_text()
+    assert (out / "best_params.yaml").is_file()
+
+    def differs(scenario, target):
+        (result,) = theory_run(scenario, target, False)
+        step = result.controller["steps"][0]["joints"]
+        for joint in step.values():
+            joint["overshoot_percent"] = np.nextafter(joint["overshoot_percent"], np.inf)
+        return [result]
+
+    again = tmp_path / "again"
+    again.mkdir()
+    code = tune_cli.run(options(again, trials=5), ThreadPool, theory_run, logs.append, differs)
+    assert code == 1
+    assert any("differs from its in-process run" in line for line in logs), logs
+    assert not (again / "out" / "best_params.yaml").exists()
+    assert "differs from its in-process run" in (again / "out" / "report.md").read_text()
+
+
 def test_the_command_exits_1_naming_the_closest_clause_when_no_trial_meets_the_spec(
     tmp_path, capsys
 ):
