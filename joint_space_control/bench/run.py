@@ -232,6 +232,7 @@ def run(
                     options.sweep_seconds,
                     options.sweep_workers,
                     log,
+                    engines=("ros", "inprocess"),
                 ),
             )
         else:

@@ -72,23 +72,26 @@ def throughput(
     duration: float,
     workers: Sequence[int] = (1, 2),
     log: Callable[[str], None] = print,
+    engines: Sequence[str] = ("ros",),
 ) -> dict[str, Any]:
-    """The sweep on a LocalCluster of each of ``workers`` workers in turn: one row each
-    (runs per minute, the phases of a run, CPU use), and the rate of the last over the
-    first."""
+    """The sweep on each engine (``ros``: the nodes as processes; ``inprocess``: the same
+    objects in the worker) on a LocalCluster of each of ``workers`` workers in turn: one
+    row each (runs per minute, the phases of a run, CPU use), the rate of the last over the
+    first per engine (``speedups``; ``speedup``: the first engine's), and with both engines
+    the in-process rate over the ROS one on the same workers (``inprocess_over_ros``)."""
     scenario = sweep_scenario(runs, duration)
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     cores = cores or 1
     rows = []
-    for n in workers:
-        target = out / f"workers_{n}"
+    for engine, n in [(e, n) for e in engines for n in workers]:
+        target = out / f"{engine}_workers_{n}"
         shutil.rmtree(target, ignore_errors=True)
-        log(f"sweep: {runs} runs of {duration:g} s on a LocalCluster of {n} worker(s)")
+        log(f"sweep: {runs} runs of {duration:g} s, {engine} engine, {n} worker(s)")
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
         cpu0, meter, opened = _cpu_seconds(), machine.CpuMeter(), time.monotonic()
         with RunPool(n, None, log) as pool:
             started = time.monotonic()
-            results = run_scenario(scenario, target, pool=pool, log=lambda _: None)
+            results = run_scenario(scenario, target, pool=pool, log=lambda _: None, engine=engine)
             elapsed = time.monotonic() - started
         total = time.monotonic() - opened
         cpu = _cpu_seconds() - cpu0
@@ -97,6 +100,7 @@ def throughput(
         lane = elapsed * n / runs  # a worker's wall time per run
         rows.append(
             {
+                "engine": engine,
                 "workers": n,
                 "runs": runs,
                 "failed": runs - len(ok),
@@ -116,14 +120,21 @@ def throughput(
                 "load_average_1min_before": load,
             }
         )
-    first, last = rows[0], rows[-1]
-    return {
+    rate = {(r["engine"], r["workers"]): r["runs_per_minute"] for r in rows}
+    speedups = {e: rate[(e, workers[-1])] / rate[(e, workers[0])] for e in engines}
+    result = {
         "robot": "planar_2dof",
         "law": "inverse_dynamics",
         "cores": cores,
         "rows": rows,
-        "speedup": last["runs_per_minute"] / first["runs_per_minute"],
+        "speedups": speedups,
+        "speedup": speedups[engines[0]],
     }
+    if {"ros", "inprocess"} <= set(engines):
+        result["inprocess_over_ros"] = {
+            n: rate[("inprocess", n)] / rate[("ros", n)] for n in workers
+        }
+    return result
 
 
 def _mean(values: Sequence[float]) -> float:
@@ -140,14 +151,14 @@ def format_sweep(sweep: dict[str, Any]) -> list[str]:
     lines = [
         f"sweep on a Dask LocalCluster: {first['runs']} runs of {first['simulated_s']:g} s "
         f"simulated, {sweep['robot']} {sweep['law']}, lockstep ({sweep['cores']} cores)",
-        "  workers  runs/min  worker s/run   start    run   stop  analysis  other  "
+        "     engine  workers  runs/min  worker s/run   start    run   stop  analysis  other  "
         "CPU s/run  CPU cores used  machine busy  failed",
     ]
     for row in rows:
         p = row["phases_s"]
         busy = row["machine_busy_fraction"]
         lines.append(
-            f"  {row['workers']:>7}  {row['runs_per_minute']:>8.1f}"
+            f"  {row.get('engine', 'ros'):>9}  {row['workers']:>7}  {row['runs_per_minute']:>8.1f}"
             f"  {row['worker_seconds_per_run']:>12.1f}"
             f"  {p['start']:>6.1f} {p['run']:>6.1f} {p['stop']:>6.1f} {p['analysis']:>9.1f}"
             f"  {row['other_s']:>5.1f}  {row['cpu_seconds_per_run']:>9.1f}"
@@ -159,5 +170,7 @@ def format_sweep(sweep: dict[str, Any]) -> list[str]:
         f"{sweep['speedup']:.2f}x the runs per minute; the CPU time per run allows at most "
         f"{rows[-1]['cpu_bound_runs_per_minute']:.1f} runs/min on {sweep['cores']} idle cores"
     )
+    for n, ratio in sweep.get("inprocess_over_ros", {}).items():
+        lines.append(f"  in process / over ROS, {n} worker(s): {ratio:.1f}x the runs per minute")
     lines.append("")
     return lines
