@@ -34,7 +34,6 @@ from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
 from joint_space_control.experiments import values
 from joint_space_control.experiments.distributed import RunPool, on_cancel
-from joint_space_control.experiments.inprocess import InProcessLoop
 from joint_space_control.experiments.loop import TRUTH_TOPIC, ClosedLoop
 from joint_space_control.experiments.probe import in_namespace
 from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
@@ -245,6 +244,9 @@ def run_once(
             lap("run")
             loop.settle_recording()
     else:
+        # pybullet (its banner on stdout) only where a run is
+        from joint_space_control.experiments.inprocess import InProcessLoop
+
         loop = InProcessLoop(scenario.setups(), sim_params, bag)
         try:
             lap("start")
