@@ -43,7 +43,7 @@ class AnalysisResult:
 
 
 def analyze_bag_to(
-    out_dir: Path, bag: str | Path, progress: Progress | None = None
+    out_dir: Path, bag: str | Path, progress: Progress | None = None, figures: bool = True
 ) -> AnalysisResult:
     """Analyse the bag at ``bag`` and write its results into ``out_dir`` (created).
 
@@ -56,21 +56,25 @@ def analyze_bag_to(
     """
     analysis = analyze_bag(bag, progress)
     try:
-        return write_analysis(analysis, out_dir)
+        return write_analysis(analysis, out_dir, figures)
     except OSError as err:
         raise ResultsWriteError(f"cannot write the results to {out_dir}: {err}") from err
 
 
-def write_analysis(analysis: BagAnalysis, out_dir: Path) -> AnalysisResult:
-    """Figures, ``metrics.json`` and ``report.md`` of ``analysis`` into ``out_dir``."""
+def write_analysis(analysis: BagAnalysis, out_dir: Path, figures: bool = True) -> AnalysisResult:
+    """Figures (unless ``figures`` is False: most of the time of a short run's analysis,
+    which a tuning trial does not need), ``metrics.json`` and ``report.md`` of ``analysis``
+    into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     several = len(analysis.controllers) > 1
-    figures = {
+    drawn = {
         c.metrics["node"]: controller_figures(
             c.state, c.metrics, out_dir, file_prefix(c.metrics["node"]) if several else ""
         )
+        if figures
+        else {}
         for c in analysis.controllers
     }
     metrics_path = write_metrics(analysis.metrics, out_dir / "metrics.json")
-    report_path = write_report(analysis.metrics, figures, out_dir)
-    return AnalysisResult(analysis, out_dir, metrics_path, report_path, figures)
+    report_path = write_report(analysis.metrics, drawn, out_dir)
+    return AnalysisResult(analysis, out_dir, metrics_path, report_path, drawn)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -70,9 +71,10 @@ class OpenPage:
 
 
 @contextmanager
-def page_open(url: str, timeout: float = 60.0) -> Iterator[OpenPage]:
-    """The page at ``url`` open and connected in headless Chromium until leaving; raises
-    :class:`PageError` when it does not connect within ``timeout``."""
+def page_open(url: str, timeout: float = 60.0, nice: int = 0) -> Iterator[OpenPage]:
+    """The page at ``url`` open and connected in headless Chromium until leaving, the
+    browser's processes at niceness ``nice``; raises :class:`PageError` when it does not
+    connect within ``timeout``."""
     proc = subprocess.Popen(
         [sys.executable, "-m", __name__, url, str(timeout)],
         stdin=subprocess.PIPE,
@@ -80,6 +82,7 @@ def page_open(url: str, timeout: float = 60.0) -> Iterator[OpenPage]:
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=(lambda: os.nice(nice)) if nice else None,  # its children inherit it
     )
     try:
         page = OpenPage(proc, url)

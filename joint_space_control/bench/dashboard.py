@@ -118,9 +118,12 @@ class Beside:
     #: Without a page: how long the dashboard gets to find the robot and build its panel.
     SETTLE_S = 3.0
 
-    def __init__(self, dashboard: bool, page: bool, log: Callable[[str], None]) -> None:
+    def __init__(
+        self, dashboard: bool, page: bool, log: Callable[[str], None], nice: int = 0
+    ) -> None:
         self.dashboard = dashboard
         self.page = page and dashboard
+        self.nice = nice
         self._log = log
         self._browser: browser.OpenPage | None = None
         self._roots: dict[str, int] = {}
@@ -142,7 +145,7 @@ class Beside:
                 _wait_listening(port, group.check_alive)
                 if self.page:
                     self._browser = stack.enter_context(
-                        browser.page_open(f"http://127.0.0.1:{port}")
+                        browser.page_open(f"http://127.0.0.1:{port}", nice=self.nice)
                     )
             self._roots = {name: n.proc.pid for name, n in group.nodes.items()}
             try:
@@ -191,10 +194,12 @@ def side_by_side(
     realtime_law: str,
     log: Callable[[str], None],
     measured: Callable[[str, Callable[[], Any]], Any] = lambda _name, part: part(),
+    browser_nice: int = 0,
 ) -> dict[str, Any]:
     """The section's result: every run, the medians, the paired ratio and difference, and
     the CPU seconds of each process (``measured(name, part)`` runs each part: the bench's
-    steal meter)."""
+    steal meter). ``browser_nice``: the niceness of the page's browser (0: as a user's runs;
+    19: every other process of the machine first)."""
     missing = browser.missing()
     page = missing is None
     if not page:
@@ -204,7 +209,7 @@ def side_by_side(
         for kind in ("lockstep", "realtime"):
             for beside in (False, True):
                 label = "with" if beside else "without"
-                side = Beside(beside, page, log)
+                side = Beside(beside, page, log, browser_nice)
                 log(f"dashboard pair {k + 1}/{pairs}: {kind} {label} the dashboard")
                 workdir = out / "runs" / f"dashboard_{kind}_{k}_{label}"
                 if kind == "lockstep":
@@ -250,7 +255,10 @@ def side_by_side(
                         "cpu_seconds": side.cpu_seconds,
                     }
                 )
-    return summarise(runs, page, missing, realtime_robot, realtime_law)
+    return {
+        **summarise(runs, page, missing, realtime_robot, realtime_law),
+        "browser_nice": browser_nice,
+    }
 
 
 def summarise(
@@ -335,8 +343,10 @@ def format_dashboard(section: dict[str, Any]) -> list[str]:
         return "-" if v is None or math.isnan(v) else f"{v:,.{digits}f}"
 
     ls, rt = section["lockstep"], section["realtime"]
+    nice = section.get("browser_nice", 0)
     beside = (
         "the dashboard with its page open in headless Chromium (SwiftShader WebGL), plotting"
+        + (f", the browser at nice {nice}" if nice else "")
         if section["page"]
         else f"the dashboard WITHOUT a page ({section['page_missing']})"
     )

@@ -75,6 +75,7 @@ class Options:
     dashboard_pairs: int = 3
     dashboard_lockstep_seconds: float = 5.0
     dashboard_realtime_seconds: float = 10.0
+    dashboard_browser_nice: int = 0  # the page's browser niceness (0: as users run one)
 
     @classmethod
     def quick(cls) -> Options:
@@ -250,6 +251,7 @@ def run(
             options.realtime_law,
             log,
             measured,
+            browser_nice=options.dashboard_browser_nice,
         )
     result["ratios"] = ratios(result)
     result["goals"] = goals(result)

@@ -23,12 +23,28 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--realtime-seconds", type=float, default=None, help="realtime run length [s] (30)"
     )
+    p.add_argument(
+        "--browser-nice",
+        type=int,
+        default=0,
+        metavar="N",
+        help="dashboard section: open the page in a browser at this niceness (0: as a user's "
+        "browser runs; 19: the lowest priority, the loop's processes first)",
+    )
     p.set_defaults(
-        handler=lambda args: run(args.out, args.quick, args.sections, args.realtime_seconds)
+        handler=lambda args: run(
+            args.out, args.quick, args.sections, args.realtime_seconds, args.browser_nice
+        )
     )
 
 
-def run(out: Path, quick: bool, sections: list[str] | None, realtime_seconds: float | None) -> int:
+def run(
+    out: Path,
+    quick: bool,
+    sections: list[str] | None,
+    realtime_seconds: float | None,
+    browser_nice: int = 0,
+) -> int:
     # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
     from joint_space_control.bench.run import SECTIONS, Options, format_table
     from joint_space_control.bench.run import run as run_bench
@@ -44,6 +60,12 @@ def run(out: Path, quick: bool, sections: list[str] | None, realtime_seconds: fl
     options = Options.quick() if quick else Options()
     if realtime_seconds is not None:
         options = Options(**{**options.__dict__, "realtime_seconds": realtime_seconds})
+    if not 0 <= browser_nice <= 19:
+        print(
+            f"jsc bench: error: --browser-nice must be 0..19, got {browser_nice}", file=sys.stderr
+        )
+        return 2
+    options = Options(**{**options.__dict__, "dashboard_browser_nice": browser_nice})
     try:
         result = run_bench(out, options, sections, lambda m: print(f"  {m}", flush=True))
     except (RuntimeError, TimeoutError) as err:

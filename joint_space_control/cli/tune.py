@@ -215,7 +215,8 @@ def run(
         from joint_space_control.experiments.distributed import RunPool
         from joint_space_control.experiments.runner import execute_run
 
-        pool_class, task = RunPool, partial(execute_run, engine=options.engine)
+        # a trial needs its metrics, not its figures (most of a short run's analysis)
+        pool_class, task = RunPool, partial(execute_run, engine=options.engine, figures=False)
         if confirm is None:
             confirm = partial(execute_run, short=False, engine="ros")
     if confirm is None:  # a stand-in task (tests): it is its own ROS engine

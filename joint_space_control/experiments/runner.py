@@ -83,7 +83,9 @@ RUN_FILES = ("bag", "report", "logs", "events.json", "error.txt")
 PREVIOUS_ATTEMPT_WAIT = 10.0
 
 
-def execute_run(run: Scenario, target: Path, short: bool, engine: str = "ros") -> list[RunResult]:
+def execute_run(
+    run: Scenario, target: Path, short: bool, engine: str = "ros", figures: bool = True
+) -> list[RunResult]:
     """One run of a scenario as a pool task (top-level and picklable, for Dask workers):
     the run into ``target`` (:func:`run_once`), one result per robot of the run; its
     ``label``: the run's name after its scenario's (``Scenario.with_settings``), ``run`` for
@@ -95,7 +97,7 @@ def execute_run(run: Scenario, target: Path, short: bool, engine: str = "ros") -
     results = [RunResult(s.name or label, run.of_robot(s), target, s.name) for s in run.setups()]
     _clear_previous_attempt(target)
     try:
-        run_once(run, target, short, results, engine)
+        run_once(run, target, short, results, engine, figures)
     except Exception as err:  # noqa: BLE001 - reported, the other runs go on
         for result in results:
             result.error = f"{type(err).__name__}: {err}"
@@ -214,10 +216,16 @@ ENGINES = ("ros", "inprocess")
 
 
 def run_once(
-    scenario: Scenario, out: Path, short: bool, results: list[RunResult], engine: str = "ros"
+    scenario: Scenario,
+    out: Path,
+    short: bool,
+    results: list[RunResult],
+    engine: str = "ros",
+    figures: bool = True,
 ) -> None:
-    """One closed-loop run into ``out`` (bag/, report/, logs/, events.json) on ``engine``;
-    ``results``: one per robot of ``scenario.setups()``, in that order."""
+    """One closed-loop run into ``out`` (bag/, report/, logs/, events.json) on ``engine``
+    (its report without figures unless ``figures``); ``results``: one per robot of
+    ``scenario.setups()``, in that order."""
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; known: {', '.join(ENGINES)}")
     out.mkdir(parents=True, exist_ok=True)
@@ -256,7 +264,7 @@ def run_once(
             loop.close()
     lap("stop")
     (out / "events.json").write_text(json.dumps(_events(results), indent=1))
-    analysis = analyze_bag_to(out / "report", bag)
+    analysis = analyze_bag_to(out / "report", bag, figures=figures)
     lap("analysis")
     for result in results:
         result.timings = dict(timings)
