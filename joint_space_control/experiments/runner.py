@@ -34,8 +34,8 @@ from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
 from joint_space_control.experiments import values
 from joint_space_control.experiments.distributed import RunPool, on_cancel
-from joint_space_control.experiments.loop import TRUTH_TOPIC, ClosedLoop
-from joint_space_control.experiments.probe import in_namespace
+from joint_space_control.experiments.harness.loop import TRUTH_TOPIC, ClosedLoop
+from joint_space_control.experiments.harness.probe import in_namespace
 from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
 from joint_space_control.laws.pd_gravity import iterative_gravity_estimate
 from joint_space_control.trajectories.reference import Trajectory

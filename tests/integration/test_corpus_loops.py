@@ -16,8 +16,8 @@ import pytest
 
 from joint_space_control.analysis.run_metrics import analyze_bag
 from joint_space_control.experiments.equivalence import differences
+from joint_space_control.experiments.harness.loop import ClosedLoop
 from joint_space_control.experiments.inprocess import InProcessLoop
-from joint_space_control.experiments.loop import ClosedLoop
 from joint_space_control.experiments.scenario import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot

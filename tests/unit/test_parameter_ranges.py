@@ -17,7 +17,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from joint_space_control.experiments import scenario
-from joint_space_control.experiments.domains import lease_domain
+from joint_space_control.experiments.harness.domains import lease_domain
 from joint_space_control.nodes.pd_gravity_controller import PDGravityControllerNode
 from joint_space_control.ros.parameters import ParamSpec, declare, descriptor_range
 from sim_bridge.parameters import prefixed

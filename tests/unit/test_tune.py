@@ -141,7 +141,7 @@ def test_the_params_file_loads_as_the_controller_node_reads_it(tmp_path):
     from rclpy.context import Context
     from rclpy.node import Node
 
-    from joint_space_control.experiments.domains import lease_domain
+    from joint_space_control.experiments.harness.domains import lease_domain
     from joint_space_control.nodes.controller_base import COMMON_PARAMETERS
     from joint_space_control.ros.parameters import ParamValues, value
 
