@@ -9,8 +9,8 @@ import threading
 import time
 from pathlib import Path
 
-from joint_space_control.experiments import scenario as scenarios
-from joint_space_control.experiments.params_file import with_params_file
+from joint_space_control.experiments.scenarios import format as scenarios
+from joint_space_control.experiments.scenarios.params_file import with_params_file
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -44,7 +44,7 @@ import numpy as np
 from joint_space_control.arrays import per_joint
 
 if TYPE_CHECKING:
-    from joint_space_control.experiments.scenario import Axis, Scenario
+    from joint_space_control.experiments.scenarios.format import Axis, Scenario
     from joint_space_control.model.dynamics import RobotModel
 
 
@@ -67,7 +67,7 @@ SAMPLES_PER_CELL = 4
 class Curve:
     """A boundary in axis coordinates: ``coords[key]`` the values along the axis of ``key``
     (one sequence per axis of the plane, of equal length; NaN where undefined), placed on a
-    heat map by :meth:`~joint_space_control.experiments.scenario.Axis.positions`."""
+    heat map by :meth:`~joint_space_control.experiments.scenarios.format.Axis.positions`."""
 
     label: str
     coords: dict[str, Any]

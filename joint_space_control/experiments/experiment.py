@@ -21,7 +21,7 @@ from joint_space_control.experiments import figures, sweep_figures
 from joint_space_control.experiments.checks import Outcome, RunView, evaluate
 from joint_space_control.experiments.distributed import RunPool
 from joint_space_control.experiments.runner import RunResult, run_scenario
-from joint_space_control.experiments.scenario import Scenario
+from joint_space_control.experiments.scenarios.format import Scenario
 from joint_space_control.json_values import jsonable
 
 #: Questions 1–8 are THEORY.md §5's experiments; 9–14 §4's practical specifications; from

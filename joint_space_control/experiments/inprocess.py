@@ -50,7 +50,7 @@ from joint_space_control.control.configure import (
 from joint_space_control.control.controller import Step
 from joint_space_control.control.sampling import VelocitySource
 from joint_space_control.experiments.harness.probe import in_namespace
-from joint_space_control.experiments.scenario import RobotSetup
+from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.recording.bag_writer import BagWriter
 from joint_space_control.ros.messages import (
     STATE_FIELDS,

@@ -36,7 +36,7 @@ from joint_space_control.experiments import values
 from joint_space_control.experiments.distributed import RunPool, on_cancel
 from joint_space_control.experiments.harness.loop import TRUTH_TOPIC, ClosedLoop
 from joint_space_control.experiments.harness.probe import in_namespace
-from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
+from joint_space_control.experiments.scenarios.format import RobotSetup, Scenario, build_reference
 from joint_space_control.laws.pd_gravity import iterative_gravity_estimate
 from joint_space_control.trajectories.reference import Trajectory
 

@@ -19,7 +19,7 @@ value; a failed run's cell is hatched, an undefined value's cell grey with "n/a"
 made (the short form) blank. Axes are labelled with label [unit] and ticked at the grid
 values, evenly spaced (a log axis too). With more axes, each combination of their values is
 a row of panels. The scenario's theory boundary (experiments/boundaries.py) is drawn on every
-panel, placed by :meth:`~joint_space_control.experiments.scenario.Axis.positions`.
+panel, placed by :meth:`~joint_space_control.experiments.scenarios.format.Axis.positions`.
 
 ``result`` is an :class:`~joint_space_control.experiments.experiment.ExperimentResult`, or
 anything with ``scenario`` and ``runs`` whose items have ``label``, ``error`` and, when the

@@ -14,7 +14,7 @@ import pybullet as pb
 import pytest
 
 from joint_space_control.experiments.inprocess import InProcessLoop
-from joint_space_control.experiments.scenario import RobotSetup
+from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.laws.gains import (
     DEFAULT_OMEGA_N,
     pd_gains_from_second_order,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from joint_space_control.experiments import boundaries, checks, sweep_figures, values
-from joint_space_control.experiments.scenario import Axis, available, load, parse
+from joint_space_control.experiments.scenarios.format import Axis, available, load, parse
 
 ID = "inverse_dynamics_controller"
 

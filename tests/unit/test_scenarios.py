@@ -11,7 +11,12 @@ import yaml
 
 from joint_space_control.analysis.metrics import second_order_prediction
 from joint_space_control.experiments import checks
-from joint_space_control.experiments.scenario import available, build_reference, load, parse
+from joint_space_control.experiments.scenarios.format import (
+    available,
+    build_reference,
+    load,
+    parse,
+)
 
 MINIMAL = {
     "title": "t",
