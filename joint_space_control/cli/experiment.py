@@ -110,7 +110,7 @@ def run(
     whole sweep (no node or worker process is left) and exits with 130."""
     # deferred: the library (ROS, Pinocchio, Dask) loads only for this command, not for
     # `jsc --help`
-    from joint_space_control.experiments.distributed import RunPool
+    from joint_space_control.experiments.execution.distributed import RunPool
     from joint_space_control.experiments.experiment import (
         ExperimentResult,
         results_page,

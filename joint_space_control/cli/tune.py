@@ -212,8 +212,8 @@ def run(
     for warning in prepared.warnings:
         log(f"warning: {warning}")
     if pool_class is None or task is None:
-        from joint_space_control.experiments.distributed import RunPool
-        from joint_space_control.experiments.runner import execute_run
+        from joint_space_control.experiments.execution.distributed import RunPool
+        from joint_space_control.experiments.execution.runner import execute_run
 
         pool_class, task = RunPool, partial(execute_run, engine=options.engine)
         if confirm is None:

@@ -124,8 +124,8 @@ def gravity_bound(
 
 def controller_model(settings: Settings) -> RobotModel:
     """The controller's own model B̂, ĝ of a run, as its node builds it from its parameters
-    (:func:`~joint_space_control.experiments.values.controller_model`)."""
-    from joint_space_control.experiments import values
+    (:func:`~joint_space_control.experiments.execution.values.controller_model`)."""
+    from joint_space_control.experiments.execution import values
 
     executable = getattr(settings, "executable", "") or settings.controller
     given = getattr(settings, "given", settings.parameters)  # a RunView's own, or a Scenario's
@@ -165,7 +165,7 @@ def step_of(scenario: Settings) -> tuple[np.ndarray, np.ndarray]:
     limits, as the plant does) and the step to the reference's target [rad]."""
     if scenario.reference.get("shape") != "step":
         raise ValueError(f"needs a step reference, got {scenario.reference.get('shape')!r}")
-    from joint_space_control.experiments import values
+    from joint_space_control.experiments.execution import values
 
     model = controller_model(scenario)
     q0 = per_joint(
@@ -197,7 +197,7 @@ def _check_saturation(data: Mapping[str, Any]) -> None:
 
 def alpha_of(scenario: Settings) -> float:
     """α of a run's plant (:func:`gravity_bound` with ``plant.payload_mass``)."""
-    from joint_space_control.experiments import values
+    from joint_space_control.experiments.execution import values
 
     plant = values.plant_values(scenario.robot, scenario.plant)
     return gravity_bound(scenario.robot, float(plant["payload_mass"]))

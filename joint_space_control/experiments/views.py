@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.analysis.bag import ControllerState, JointStates
-from joint_space_control.experiments import values
+from joint_space_control.experiments.execution import values
 from joint_space_control.model.dynamics import RobotModel
 
 
@@ -27,7 +27,7 @@ class Outcome:
 class RunView:
     """What a check needs of one run (see runner.RunResult). ``parameters`` and ``plant``
     are the values the nodes ran with: the scenario's over the declared defaults
-    (:mod:`~joint_space_control.experiments.values`), so a check reads
+    (:mod:`~joint_space_control.experiments.execution.values`), so a check reads
     ``r.parameters["rate"]`` and never types a default of its own."""
 
     label: str

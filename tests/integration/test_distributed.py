@@ -34,9 +34,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from joint_space_control.experiments.distributed import RunPool, on_cancel
+from joint_space_control.experiments.execution.distributed import RunPool, on_cancel
+from joint_space_control.experiments.execution.runner import run_scenario
 from joint_space_control.experiments.experiment import run_experiment
-from joint_space_control.experiments.runner import run_scenario
 from joint_space_control.experiments.scenarios import format as scenarios
 
 pytestmark = pytest.mark.integration

@@ -11,7 +11,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from joint_space_control.experiments import boundaries, checks, sweep_figures, values
+from joint_space_control.experiments import boundaries, checks, sweep_figures
+from joint_space_control.experiments.execution import values
 from joint_space_control.experiments.scenarios.format import Axis, available, load, parse
 
 ID = "inverse_dynamics_controller"
