@@ -18,9 +18,10 @@ from pathlib import Path
 
 from joint_space_control.analysis.report import write_metrics
 from joint_space_control.experiments import figures, sweep_figures
-from joint_space_control.experiments.checks import Outcome, RunView, evaluate
 from joint_space_control.experiments.execution.distributed import RunPool
 from joint_space_control.experiments.execution.runner import RunResult, run_scenario
+from joint_space_control.experiments.judging.outcome import Outcome, RunView
+from joint_space_control.experiments.judging.theory import evaluate
 from joint_space_control.experiments.scenarios.format import Scenario
 from joint_space_control.json_values import jsonable
 

@@ -27,7 +27,7 @@ variants:                                  # optional: one run per value (a swee
   # or several settings per run:
   # runs: [{label: id, set: {parameters.law: inverse_dynamics, parameters.omega_n: 10}}]
   # (``controller: inverse_dynamics_controller`` in ``set`` switches the executable)
-checks: [...]                              # theory checks, see experiments/checks.py
+checks: [...]                              # theory checks, see experiments/judging/theory.py
 ```
 
 A **grid** sweeps the product of two or more axes, in row-major order (the last axis varies
@@ -45,7 +45,7 @@ variants:
     # name: defaults to the last part of the key; also: [other keys set to the same value],
     # e.g. {key: plant.payload_mass, also: [parameters.model_payload_mass], ...}
   boundary: saturation_onset               # optional: a theory boundary on every heat map
-                                           # (experiments/boundaries.py)
+                                           # (experiments/judging/boundaries.py)
   short: [...]                             # optional run labels (default: the corners)
 ```
 
@@ -83,8 +83,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from joint_space_control.experiments import boundaries
 from joint_space_control.experiments.figures import FIGURES
+from joint_space_control.experiments.judging import boundaries
 from joint_space_control.paths import experiments_dir
 from joint_space_control.trajectories import shapes
 from joint_space_control.trajectories.reference import Trajectory
@@ -228,7 +228,7 @@ class Variants:
     grid_index: tuple[tuple[int, ...], ...] = ()
     """A grid: each run's index along :attr:`axes`, in the order of :attr:`runs`."""
     boundary: str | None = None
-    """A grid: the theory boundary drawn on its heat maps (experiments/boundaries.py)."""
+    """A grid: the theory boundary drawn on its heat maps (experiments/judging/boundaries.py)."""
 
     @property
     def shape(self) -> tuple[int, ...]:

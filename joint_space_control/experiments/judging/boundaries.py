@@ -49,8 +49,9 @@ if TYPE_CHECKING:
 
 
 class Settings(Protocol):
-    """What a boundary reads of a run: a :class:`~.scenario.Scenario`, or a check's
-    :class:`~.views.RunView`."""
+    """What a boundary reads of a run: a
+    :class:`~joint_space_control.experiments.scenarios.format.Scenario`, or a check's
+    :class:`~joint_space_control.experiments.judging.outcome.RunView`."""
 
     robot: str
     plant: dict[str, Any]
