@@ -111,11 +111,8 @@ def run(
     # deferred: the library (ROS, Pinocchio, Dask) loads only for this command, not for
     # `jsc --help`
     from joint_space_control.experiments.execution.distributed import RunPool
-    from joint_space_control.experiments.experiment import (
-        ExperimentResult,
-        results_page,
-        run_experiment,
-    )
+    from joint_space_control.experiments.experiment import ExperimentResult, run_experiment
+    from joint_space_control.experiments.presentation.results import results_page
 
     def error(message: str) -> int:
         print(f"jsc experiment: error: {message}", file=sys.stderr)

@@ -4,8 +4,8 @@ accuracy and repeatability, sampling, bandwidth, measurement noise.
 Pure like :mod:`~joint_space_control.experiments.judging.theory` (which registers these):
 runs in, :class:`~joint_space_control.experiments.judging.outcome.Outcome` out, each with the
 measured number next to the prediction and the tolerance it is judged with. The numbers an
-experiment's figure draws are in ``Outcome.numbers`` (experiments/figures.py), so what is
-drawn is what was checked.
+experiment's figure draws are in ``Outcome.numbers`` (experiments/presentation/figures.py),
+so what is drawn is what was checked.
 """
 
 from __future__ import annotations
