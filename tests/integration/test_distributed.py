@@ -44,7 +44,7 @@ pytestmark = pytest.mark.integration
 MARKER = "JSC_TEST_MARKER"
 
 #: A 3 × 3 grid of short lockstep runs: ω_n × the controller model's mass scale under
-#: inverse dynamics on the planar arm (``variants: grid:``, scenario.py).
+#: inverse dynamics on the planar arm (``variants: grid:``, scenarios/format.py).
 OMEGAS = (8.0, 12.0, 16.0)
 MASS_SCALES = (0.8, 1.0, 1.2)
 SCENARIO = """
