@@ -45,7 +45,7 @@ PYPI_REQUIRES = [
     "yourdfpy>=0.0.56,<0.1",
     "lxml>=4.9,<7",
     "xacro>=2,<3",
-    # Sweeps and tuning trials as tasks on a cluster (experiments/distributed.py): a
+    # Sweeps and tuning trials as tasks on a cluster (experiments/execution/distributed.py): a
     # LocalCluster by default, or any dask.distributed scheduler (SLURM/PBS: dask-jobqueue).
     "dask[distributed]>=2024.8",
     # `jsc tune`: TPE studies with constraints, resumable from an RDB (SQLite) file.

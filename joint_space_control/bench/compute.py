@@ -123,8 +123,8 @@ def in_process_loop(robot: str, law: str, steps: int) -> dict[str, Any]:
     inprocess`: sim_bridge's plant and sub-step loop, the controller object, no ROS, no
     bag): steps per second of measure → controller step → physics step (1 kHz), a 0.3 rad
     step on every joint."""
-    from joint_space_control.experiments.inprocess import InProcessLoop  # pybullet
-    from joint_space_control.experiments.scenario import RobotSetup
+    from joint_space_control.experiments.execution.inprocess import InProcessLoop  # pybullet
+    from joint_space_control.experiments.scenarios.format import RobotSetup
 
     setup = RobotSetup("", robot, {}, LAWS[law], BENCH_PARAMETERS[law], {})
     loop = InProcessLoop([setup], {})

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from joint_space_control.bench import browser, ros
-from joint_space_control.experiments.processes import ProcessGroup
+from joint_space_control.experiments.harness.processes import ProcessGroup
 
 LOCKSTEP_ROBOT, LOCKSTEP_LAW = "planar_2dof", "pd_gravity"
 #: The nodes' default thread_priority (the realtime section's goal rows use it too).

@@ -23,9 +23,9 @@ import rclpy.duration
 from diagnostic_msgs.msg import DiagnosticArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from joint_space_control.experiments.client import RosClient
-from joint_space_control.experiments.domains import lease_domain
-from joint_space_control.experiments.processes import ProcessGroup, isolated_env
+from joint_space_control.experiments.harness.client import RosClient
+from joint_space_control.experiments.harness.domains import lease_domain
+from joint_space_control.experiments.harness.processes import ProcessGroup, isolated_env
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.ros.diagnostics import DIAGNOSTICS_QOS, statuses
@@ -387,7 +387,7 @@ def analyze_time(workdir: Path, seconds: float, log: Callable[[str], None]) -> d
 
     from joint_space_control.analysis.bag import BagError
     from joint_space_control.analysis.pipeline import ResultsWriteError, analyze_bag_to
-    from joint_space_control.experiments.loop import ClosedLoop
+    from joint_space_control.experiments.harness.loop import ClosedLoop
 
     log(f"jsc analyze: recording {seconds:g} s of simulated time")
     bag = workdir / "bag"

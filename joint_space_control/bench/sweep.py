@@ -25,9 +25,9 @@ from pathlib import Path
 from typing import Any
 
 from joint_space_control import machine
-from joint_space_control.experiments.distributed import RunPool
-from joint_space_control.experiments.runner import run_scenario
-from joint_space_control.experiments.scenario import Scenario, parse
+from joint_space_control.experiments.execution.distributed import RunPool
+from joint_space_control.experiments.execution.runner import run_scenario
+from joint_space_control.experiments.scenarios.format import Scenario, parse
 
 #: The phases of a run, in order (runner.run_once).
 PHASES = ("start", "run", "stop", "analysis")

@@ -9,8 +9,8 @@ import threading
 import time
 from pathlib import Path
 
-from joint_space_control.experiments import scenario as scenarios
-from joint_space_control.experiments.params_file import with_params_file
+from joint_space_control.experiments.scenarios import format as scenarios
+from joint_space_control.experiments.scenarios.params_file import with_params_file
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -110,12 +110,9 @@ def run(
     whole sweep (no node or worker process is left) and exits with 130."""
     # deferred: the library (ROS, Pinocchio, Dask) loads only for this command, not for
     # `jsc --help`
-    from joint_space_control.experiments.distributed import RunPool
-    from joint_space_control.experiments.experiment import (
-        ExperimentResult,
-        results_page,
-        run_experiment,
-    )
+    from joint_space_control.experiments.execution.distributed import RunPool
+    from joint_space_control.experiments.experiment import ExperimentResult, run_experiment
+    from joint_space_control.experiments.presentation.results import results_page
 
     def error(message: str) -> int:
         print(f"jsc experiment: error: {message}", file=sys.stderr)

@@ -212,8 +212,8 @@ def run(
     for warning in prepared.warnings:
         log(f"warning: {warning}")
     if pool_class is None or task is None:
-        from joint_space_control.experiments.distributed import RunPool
-        from joint_space_control.experiments.runner import execute_run
+        from joint_space_control.experiments.execution.distributed import RunPool
+        from joint_space_control.experiments.execution.runner import execute_run
 
         # a trial needs its metrics, not its figures (most of a short run's analysis)
         pool_class, task = RunPool, partial(execute_run, engine=options.engine, figures=False)

@@ -1,0 +1,14 @@
+"""Experiments: the theory's questions asked of real runs, and the machinery that runs them.
+
+One layer of the package (tests/unit/test_layers.py), its modules grouped by job, each job a
+subpackage: :mod:`~joint_space_control.experiments.harness` starts and drives node processes
+(the lockstep ``ClosedLoop``); :mod:`~joint_space_control.experiments.scenarios` reads the
+scenario files; :mod:`~joint_space_control.experiments.execution` turns a scenario's variants
+into recorded, analysed runs on either engine (node processes, or the same objects in
+process); :mod:`~joint_space_control.experiments.judging` sets every measured number beside
+the theory's prediction; :mod:`~joint_space_control.experiments.presentation` draws the
+figures and writes the summaries and the results page. At the top sit the entry points of the
+commands built on them: :mod:`~joint_space_control.experiments.experiment`
+(``jsc experiment``: runs, checks, figures), :mod:`~joint_space_control.experiments.soak`
+(``jsc soak``) and :mod:`~joint_space_control.experiments.demo` (``make demo``).
+"""

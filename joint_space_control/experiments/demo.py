@@ -3,7 +3,7 @@ headless, recorded to a bag (analysed by the caller, as a user would with the re
 ``jsc analyze``); and ``jsc demo --view``: the same robot in realtime with the dashboard.
 
 The run is library code, not CLI code, so that the command line only reports: it is the
-same :class:`~joint_space_control.experiments.loop.ClosedLoop` the scenarios use, with the
+same :class:`~joint_space_control.experiments.harness.loop.ClosedLoop` the scenarios use, with the
 nodes' installed parameter files.
 """
 
@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from joint_space_control.experiments.domains import lease_domain
-from joint_space_control.experiments.loop import ClosedLoop
-from joint_space_control.experiments.processes import ProcessGroup
+from joint_space_control.experiments.harness.domains import lease_domain
+from joint_space_control.experiments.harness.loop import ClosedLoop
+from joint_space_control.experiments.harness.processes import ProcessGroup
 from joint_space_control.paths import config_file
 
 JOINTS = ["joint1", "joint2"]

@@ -51,9 +51,9 @@ from joint_space_control.analysis.soak_metrics import (
     passed,
     verdict,
 )
-from joint_space_control.experiments.client import RosClient
-from joint_space_control.experiments.domains import lease_domain
-from joint_space_control.experiments.processes import ProcessGroup
+from joint_space_control.experiments.harness.client import RosClient
+from joint_space_control.experiments.harness.domains import lease_domain
+from joint_space_control.experiments.harness.processes import ProcessGroup
 from joint_space_control.json_values import jsonable
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.analysis.spec import Spec
-from joint_space_control.experiments.scenario import Scenario, parse
+from joint_space_control.experiments.scenarios.format import Scenario, parse
 
 #: ``--controller`` → the controller's executable (and node name).
 CONTROLLERS = {

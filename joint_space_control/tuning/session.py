@@ -19,7 +19,7 @@ import optuna
 from optuna.trial import FrozenTrial, TrialState
 
 from joint_space_control.analysis.spec import fmt_value, judge, parse_spec
-from joint_space_control.experiments.equivalence import differences
+from joint_space_control.experiments.execution.equivalence import differences
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import builtin_robots, resolve_robot
 from joint_space_control.tuning import figures, outputs
@@ -316,8 +316,8 @@ def confirm_best(
     """Run the best trial's scenario again with ``run(scenario, target)`` (the ROS engine)
     into its ``ros_confirmation`` directory: the same values of every clause of the spec,
     bit for bit, and (where both runs wrote one) the same ``metrics.json`` apart from what
-    only the recording's clock decides (experiments/equivalence.py). None without a best
-    trial."""
+    only the recording's clock decides (experiments/execution/equivalence.py). None without a
+    best trial."""
     best = best_trial(study)
     if best is None:
         return None

@@ -2,11 +2,11 @@
 on robot descriptions nobody here wrote (tests/corpus.py).
 
 The node processes (sim_bridge in lockstep, the controller, the recorder) and the in-process
-engine (:mod:`joint_space_control.experiments.inprocess`: the same plant, controller objects
-and sub-step loop, no ROS graph) run the same step of a corpus robot from the controllers'
-parameters; every recorded ``~/state`` row (q_d … τ, the joint state answered) is equal to
-the last bit, and so are the metrics of the analysis. The theory itself is checked on the
-in-process engine (tests/unit/test_inprocess.py).
+engine (:mod:`joint_space_control.experiments.execution.inprocess`: the same plant, controller
+objects and sub-step loop, no ROS graph) run the same step of a corpus robot from the
+controllers' parameters; every recorded ``~/state`` row (q_d … τ, the joint state answered) is
+equal to the last bit, and so are the metrics of the analysis. The theory itself is checked on
+the in-process engine (tests/unit/test_inprocess.py).
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from joint_space_control.analysis.run_metrics import analyze_bag
-from joint_space_control.experiments.equivalence import differences
-from joint_space_control.experiments.inprocess import InProcessLoop
-from joint_space_control.experiments.loop import ClosedLoop
-from joint_space_control.experiments.scenario import RobotSetup
+from joint_space_control.experiments.execution.equivalence import differences
+from joint_space_control.experiments.execution.inprocess import InProcessLoop
+from joint_space_control.experiments.harness.loop import ClosedLoop
+from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from tests.corpus import BY_NAME, PACKAGE_PATHS

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from std_msgs.msg import String
 
-from joint_space_control.experiments.probe import LoopProbe
-from joint_space_control.experiments.processes import ProcessGroup
+from joint_space_control.experiments.harness.probe import LoopProbe
+from joint_space_control.experiments.harness.processes import ProcessGroup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.ros.messages import CONFIG_QOS

@@ -34,17 +34,17 @@ from typing import Any
 import numpy as np
 import pytest
 
-from joint_space_control.experiments import scenario as scenarios
-from joint_space_control.experiments.distributed import RunPool, on_cancel
+from joint_space_control.experiments.execution.distributed import RunPool, on_cancel
+from joint_space_control.experiments.execution.runner import run_scenario
 from joint_space_control.experiments.experiment import run_experiment
-from joint_space_control.experiments.runner import run_scenario
+from joint_space_control.experiments.scenarios import format as scenarios
 
 pytestmark = pytest.mark.integration
 
 MARKER = "JSC_TEST_MARKER"
 
 #: A 3 × 3 grid of short lockstep runs: ω_n × the controller model's mass scale under
-#: inverse dynamics on the planar arm (``variants: grid:``, scenario.py).
+#: inverse dynamics on the planar arm (``variants: grid:``, scenarios/format.py).
 OMEGAS = (8.0, 12.0, 16.0)
 MASS_SCALES = (0.8, 1.0, 1.2)
 SCENARIO = """

@@ -13,8 +13,8 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from joint_space_control.experiments.inprocess import InProcessLoop
-from joint_space_control.experiments.scenario import RobotSetup
+from joint_space_control.experiments.execution.inprocess import InProcessLoop
+from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.laws.gains import (
     DEFAULT_OMEGA_N,
     pd_gains_from_second_order,

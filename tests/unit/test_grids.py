@@ -11,8 +11,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from joint_space_control.experiments import boundaries, checks, sweep_figures, values
-from joint_space_control.experiments.scenario import Axis, available, load, parse
+from joint_space_control.experiments.execution import values
+from joint_space_control.experiments.judging import boundaries, theory
+from joint_space_control.experiments.presentation import sweep_figures
+from joint_space_control.experiments.scenarios.format import Axis, available, load, parse
 
 ID = "inverse_dynamics_controller"
 
@@ -333,7 +335,7 @@ def test_cell_text_and_ticks_stay_short():
 # --------------------------------------------------------------------------- checks
 def view(label, omega, scale, sat, robot="planar_2dof"):
     c = {"joints": ["j1", "j2"], "torque_demand": {"saturated_fraction": {"j1": sat, "j2": 0.0}}}
-    return checks.RunView(
+    return theory.RunView(
         label,
         robot,
         c,
@@ -352,15 +354,15 @@ def test_saturation_boundary_judges_each_side_with_its_margin():
         view("high", 1.2 * onset, 1.0, 0.01),
         view("near", 1.05 * onset, 1.0, 0.0),
     ]
-    below, above, near = checks.saturation_boundary(runs, margin=0.15)
+    below, above, near = theory.saturation_boundary(runs, margin=0.15)
     assert (below.passed, above.passed, near.passed) == (True, True, None)
     assert below.numbers["labels"] == ["low"] and near.numbers["labels"] == ["near"]
     wrong = [view("low", 0.8 * onset, 1.0, 0.001), view("high", 1.2 * onset, 1.0, 0.0)]
-    assert [o.passed for o in checks.saturation_boundary(wrong, margin=0.15)] == [False, False]
+    assert [o.passed for o in theory.saturation_boundary(wrong, margin=0.15)] == [False, False]
     # a lighter controller model saturates later: 1.1 × the nominal onset is below its own
     light = boundaries.saturation_onset(view("x", 1.0, 0.6, 0.0))
     assert 0.85 * light > 1.1 * onset
-    (only,) = checks.saturation_boundary([view("l", 1.1 * onset, 0.6, 0.0)], margin=0.15)
+    (only,) = theory.saturation_boundary([view("l", 1.1 * onset, 0.6, 0.0)], margin=0.15)
     assert only.passed is True and only.numbers["onset"] == [light]
 
 
@@ -370,16 +372,16 @@ def test_where_and_unsaturated_select_the_runs_a_check_judges():
         view("b", 30.0, 1.0, 0.02),
         view("c", 8.0, 0.6, 0.0),
     ]
-    assert [r.label for r in checks.select(runs, {"parameters.model_mass_scale": 1.0})] == [
+    assert [r.label for r in theory.select(runs, {"parameters.model_mass_scale": 1.0})] == [
         "a",
         "b",
     ]
-    assert [r.label for r in checks.select(runs, None, unsaturated=True)] == ["a", "c"]
+    assert [r.label for r in theory.select(runs, None, unsaturated=True)] == ["a", "c"]
     spec = {"check": "saturation_boundary", "where": {"parameters.model_mass_scale": 1.4}}
-    (none,) = checks.evaluate(spec, runs)
+    (none,) = theory.evaluate(spec, runs)
     assert none.passed is None and "no run with parameters.model_mass_scale = 1.4" in none.text
     with pytest.raises(ValueError, match="'where' must be a mapping"):
-        checks.evaluate({"check": "final_error", "where": [1]}, runs)
+        theory.evaluate({"check": "final_error", "where": [1]}, runs)
 
 
 def pd_view(label, kp, payload, final, model_payload=None):
@@ -390,7 +392,7 @@ def pd_view(label, kp, payload, final, model_payload=None):
         "steps": [{"joints": {"joint1": {"target": 1.2}, "joint2": {"target": -0.8}}}],
     }
     params = {"kp": kp, "model_payload_mass": payload if model_payload is None else model_payload}
-    return checks.RunView(
+    return theory.RunView(
         label, "planar_2dof", c, [], params, {"payload_mass": payload}, "pd_gravity_controller"
     )
 
@@ -403,11 +405,11 @@ def test_constant_gravity_judges_above_alpha_of_each_plant_and_summarises_a_grid
         pd_view("above_but_loaded", 1600.0, 40.0, [1e-5, 0.0]),  # 1600 < α(40 kg)
         pd_view("stuck", 2200.0, 0.0, [0.5, 0.0]),
     ]
-    above, below = checks.constant_gravity(runs, tol=1e-3, per_run=False)
+    above, below = theory.constant_gravity(runs, tol=1e-3, per_run=False)
     assert above.passed is False and "stuck (0.5 rad)" in above.text
     assert above.numbers["labels"] == ["above", "stuck"]
     assert below.passed is None and below.numbers["labels"] == ["above_but_loaded"]
-    per_run = checks.constant_gravity(runs, tol=1e-3)
+    per_run = theory.constant_gravity(runs, tol=1e-3)
     assert [o.passed for o in per_run] == [True, None, False]
 
 
@@ -416,14 +418,14 @@ def test_constant_gravity_with_an_unmodelled_payload_predicts_the_equilibrium():
     K_P (q_d − q_e) = g(q_e) − ĝ(q_d), not at q_d."""
     kp, q_d = 2500.0, np.array([1.2, -0.8])
     r = pd_view("x", kp, 20.0, [0.0, 0.0], model_payload=0.0)
-    q_e = checks._gravity_equilibrium(r, q_d, np.array([kp, kp]))
+    q_e = theory._gravity_equilibrium(r, q_d, np.array([kp, kp]))
     plant = boundaries._model("planar_2dof", payload_mass=20.0)
     g_hat = boundaries._model("planar_2dof").gravity(q_d)
     np.testing.assert_allclose(kp * (q_d - q_e), plant.gravity(q_e) - g_hat, atol=1e-9)
     assert np.max(np.abs(q_d - q_e)) > 0.01
     at_q_e = pd_view("at", kp, 20.0, (q_d - q_e).tolist(), model_payload=0.0)
     at_q_d = pd_view("at_qd", kp, 20.0, [0.0, 0.0], model_payload=0.0)
-    assert [o.passed for o in checks.constant_gravity([at_q_e, at_q_d])] == [True, False]
+    assert [o.passed for o in theory.constant_gravity([at_q_e, at_q_d])] == [True, False]
 
 
 def test_the_grid_scenarios_are_installed_with_their_boundaries():
@@ -439,12 +441,12 @@ def test_the_grid_scenarios_are_installed_with_their_boundaries():
 
 
 def test_the_results_page_shows_a_grids_heat_maps_in_its_question(tmp_path):
-    from joint_space_control.experiments.experiment import (
-        ExperimentResult,
+    from joint_space_control.experiments.experiment import ExperimentResult
+    from joint_space_control.experiments.judging.outcome import Outcome
+    from joint_space_control.experiments.presentation.results import (
         results_page,
         summary_markdown,
     )
-    from joint_space_control.experiments.views import Outcome
 
     s = grid(MASS, OMEGA, boundary="saturation_onset")
     out = tmp_path / "out" / s.name
@@ -469,7 +471,7 @@ def test_the_results_page_shows_a_grids_heat_maps_in_its_question(tmp_path):
 
 
 def test_the_results_page_points_to_the_tuning_example_only_beside_it(tmp_path):
-    from joint_space_control.experiments.experiment import (
+    from joint_space_control.experiments.presentation.results import (
         TUNING_FIGURE,
         TUNING_PAGE,
         tuning_section,
@@ -487,7 +489,7 @@ def test_the_results_page_points_to_the_tuning_example_only_beside_it(tmp_path):
 
 
 def test_the_tuning_example_the_results_page_links_exists_in_the_docs():
-    from joint_space_control.experiments.experiment import (
+    from joint_space_control.experiments.presentation.results import (
         TUNING_EXAMPLE,
         TUNING_FIGURE,
         TUNING_PAGE,

@@ -24,8 +24,8 @@ from joint_space_control.analysis.metrics import (
     tracking_error,
 )
 from joint_space_control.analysis.run_metrics import analyze_bag
-from joint_space_control.experiments.inprocess import EngineError, InProcessLoop
-from joint_space_control.experiments.scenario import RobotSetup
+from joint_space_control.experiments.execution.inprocess import EngineError, InProcessLoop
+from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from tests.corpus import BY_NAME, PACKAGE_PATHS

@@ -25,7 +25,12 @@ PACKAGES = ("joint_space_control", "sim_bridge")
 # - ros: the ROS 2 layer the nodes share (parameters, messages, control path, diagnostics);
 # - nodes, dashboard, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level
 #   package; dashboard holds the web page the dashboard node serves);
-# - experiments: closed loops of node processes, scenarios, the soak run;
+# - experiments: one layer, five jobs in its subpackages (they may import each other):
+#   harness (node processes, domains, client nodes, the lockstep ClosedLoop), scenarios (the
+#   scenario format, --params-file), execution (runner, RunPool, the in-process engine, run
+#   values, engine equivalence), judging (the §5 and §4 checks, Outcome/RunView, boundaries),
+#   presentation (figures, sweep figures, summaries and the results page); at its top,
+#   experiment.py (run_experiment), soak.py and demo.py;
 # - bench: measurements that drive the experiments' process machinery;
 # - tuning: jsc tune's study, whose trials are experiment runs;
 # - cli: argument parsing that calls the layers below.

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from joint_space_control import paths
-from joint_space_control.experiments import scenario
+from joint_space_control.experiments.scenarios import format as scenarios
 from joint_space_control.model.robots import builtin_robots
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -63,11 +63,11 @@ def test_lookup_goes_through_importlib_resources_not_the_source_tree_or_ament(
     monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
 
     assert paths.data_dir() == copy
-    found = scenario.available()
+    found = scenarios.available()
     assert set(found) == {p.stem for p in (PACKAGE_DIR / "config/experiments").glob("*.yaml")}
     assert all(p.parent == copy / "config" / "experiments" for p in found.values())
     for name in found:  # what `jsc experiment --list` does with each
-        assert scenario.load(name).path.is_relative_to(copy)
+        assert scenarios.load(name).path.is_relative_to(copy)
     for name in DEMO_CONFIGS:
         assert paths.config_file(name) == copy / "config" / name
     assert builtin_robots()["planar_2dof"].urdf_path == copy / "robots/urdf/planar_2dof.urdf"
@@ -78,7 +78,7 @@ def test_a_broken_install_says_what_is_missing(tmp_path, monkeypatch):
     empty.mkdir()
     monkeypatch.setattr(importlib.resources, "files", lambda anchor: empty)
     with pytest.raises(FileNotFoundError, match="installed without its data"):
-        scenario.available()
+        scenarios.available()
     with pytest.raises(FileNotFoundError, match="installed without its data"):
         paths.config_file("sim_bridge.yaml")
 

@@ -16,8 +16,8 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from joint_space_control.experiments import scenario
-from joint_space_control.experiments.domains import lease_domain
+from joint_space_control.experiments.harness.domains import lease_domain
+from joint_space_control.experiments.scenarios import format as scenarios
 from joint_space_control.nodes.pd_gravity_controller import PDGravityControllerNode
 from joint_space_control.ros.parameters import ParamSpec, declare, descriptor_range
 from sim_bridge.parameters import prefixed
@@ -153,12 +153,12 @@ PLANT = {s.name: s for s in NODES["sim_bridge"]}
 GENERATOR = {s.name: s for s in NODES["trajectory_generator"]}
 
 
-@pytest.mark.parametrize("name", sorted(scenario.available()))
+@pytest.mark.parametrize("name", sorted(scenarios.available()))
 def test_every_value_a_scenario_sets_is_within_its_range(name):
     """Every run of every variant (the grids' corners and all between), every scheduled
     change; the reference's settings where they are the trajectory generator's."""
     checked = 0
-    for label, run in scenario.load(name).runs():
+    for label, run in scenarios.load(name).runs():
         where = f"{name}/{label}"
         for setup in run.setups():
             checked += _check(PLANT, {**run.plant, **setup.plant}, where)

@@ -1,4 +1,4 @@
-"""The practical-specification checks (experiments/practice.py) on synthetic runs whose
+"""The practical-specification checks (experiments/judging/practical.py) on synthetic runs whose
 answer is known: each passes on the predicted numbers and fails just outside its tolerance."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from joint_space_control.experiments import practice
-from joint_space_control.experiments.views import RunView
+from joint_space_control.experiments.judging import practical
+from joint_space_control.experiments.judging.outcome import RunView
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 
@@ -50,15 +50,15 @@ def test_disturbance_offsets_of_pd_pid_and_inverse_dynamics():
     e_id = -np.linalg.solve(m.inertia(Q_F), tau_ext) / KP
     pd, pid = run(e_pd, plant=PUSH), run(0 * e_pd, parameters={"ki": [10.0, 5.0]}, plant=PUSH)
     id_ = run(e_id, executable="inverse_dynamics_controller", plant=PUSH)
-    assert [o.passed for o in practice.disturbance([pd, pid, id_])] == [True, True, True]
+    assert [o.passed for o in practical.disturbance([pd, pid, id_])] == [True, True, True]
     off = 1.05 * e_pd  # 5 % off the prediction: beyond the 2 % tolerance
     bad_pid = run([2e-4, 0.0], parameters={"ki": 1.0}, plant=PUSH)
-    assert [o.passed for o in practice.disturbance([run(off, plant=PUSH), bad_pid])] == [
+    assert [o.passed for o in practical.disturbance([run(off, plant=PUSH), bad_pid])] == [
         False,
         False,
     ]
     with pytest.raises(ValueError, match="wrench_link"):
-        practice.disturbance([run(e_pd)])
+        practical.disturbance([run(e_pd)])
 
 
 def test_coulomb_band_claims_pd_and_reports_pid():
@@ -67,7 +67,7 @@ def test_coulomb_band_claims_pd_and_reports_pid():
     inside = run(0.99 * band * [1, -1], plant=friction)
     outside = run([1.02 * band[0], 0.0], plant=friction)
     pid = run(2 * band, parameters={"ki": [1.0, 1.0]}, plant=friction)
-    outcomes = practice.coulomb_band([inside, outside, pid])
+    outcomes = practical.coulomb_band([inside, outside, pid])
     assert [o.passed for o in outcomes] == [True, False, None]
     np.testing.assert_allclose(outcomes[0].numbers["band"], band)
 
@@ -90,7 +90,7 @@ def test_repeatability_groups_runs_and_judges_the_band_and_the_bias():
     beyond = group("leaky", Q_F - 1.1 * band + rng.normal(0, 1e-5, (6, 2)), friction)
     noisy = group("noise", Q_F + rng.normal(0, 1e-3, (6, 2)), {})
     biased = group("biased", Q_F + 5e-3 + rng.normal(0, 1e-3, (6, 2)), {})
-    outcomes = practice.repeatability(stuck + beyond + noisy + biased)
+    outcomes = practical.repeatability(stuck + beyond + noisy + biased)
     assert [(o.numbers["group"], o.passed) for o in outcomes] == [
         ("friction", True),
         ("leaky", False),
@@ -99,7 +99,7 @@ def test_repeatability_groups_runs_and_judges_the_band_and_the_bias():
     ]
     np.testing.assert_allclose(outcomes[0].numbers["accuracy"], np.linalg.norm(0.9 * band), 1e-3)
     with pytest.raises(ValueError, match="one run"):
-        practice.repeatability([run([0, 0], "alone-1")])
+        practical.repeatability([run([0, 0], "alone-1")])
 
 
 def test_predicted_chatter_matches_the_analytic_variance_of_the_noise_through_the_law():
@@ -107,8 +107,8 @@ def test_predicted_chatter_matches_the_analytic_variance_of_the_noise_through_th
     K_D n_v, A = ∂g/∂q − K_P, so Var Δδτ_i = 2 (Σ_j A_ij² σ_q² + K_D,i² σ_v²); with a backward
     difference (D = K_D/T) Δδτ_k = (A − D) n_k + (2D − A) n_{k−1} − D n_{k−2}. The simulated
     prediction (20000 samples) within 3 %."""
-    from joint_space_control.experiments.boundaries import gravity_jacobian
-    from joint_space_control.experiments.practice import predicted_chatter
+    from joint_space_control.experiments.judging.boundaries import gravity_jacobian
+    from joint_space_control.experiments.judging.practical import predicted_chatter
 
     sigma_q, sigma_v, period = 1e-4, 0.02, 1e-3
     kd = np.array([900.0, 300.0])

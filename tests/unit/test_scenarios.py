@@ -10,8 +10,13 @@ import pytest
 import yaml
 
 from joint_space_control.analysis.metrics import second_order_prediction
-from joint_space_control.experiments import checks
-from joint_space_control.experiments.scenario import available, build_reference, load, parse
+from joint_space_control.experiments.judging import theory
+from joint_space_control.experiments.scenarios.format import (
+    available,
+    build_reference,
+    load,
+    parse,
+)
 
 MINIMAL = {
     "title": "t",
@@ -206,8 +211,8 @@ def test_references_are_built_from_the_initial_configuration():
 
 # --------------------------------------------------------------------------- checks
 def controller_metrics(overshoot, settling, sse=0.0, kp=(64.0,), kd=(8.0,)):
-    theory = second_order_prediction(np.sqrt(kp), np.array(kd) / (2 * np.sqrt(kp)))
-    prediction = {k: float(v[0]) for k, v in theory.items()}
+    predicted = second_order_prediction(np.sqrt(kp), np.array(kd) / (2 * np.sqrt(kp)))
+    prediction = {k: float(v[0]) for k, v in predicted.items()}
     return {
         "joints": ["j1"],
         "final_error": {"j1": sse},
@@ -230,7 +235,7 @@ def controller_metrics(overshoot, settling, sse=0.0, kp=(64.0,), kd=(8.0,)):
 
 
 def view(c, label="run", events=()):
-    return checks.RunView(label, "planar_2dof", c, list(events), {})
+    return theory.RunView(label, "planar_2dof", c, list(events), {})
 
 
 def test_second_order_check_uses_the_stated_tolerances():
@@ -239,7 +244,7 @@ def test_second_order_check_uses_the_stated_tolerances():
     bad_os, _ = controller_metrics(p["overshoot_percent"] + 1.1, p["settling_time_2"])
     bad_ts, _ = controller_metrics(p["overshoot_percent"], p["settling_time_2"] * 1.06)
     bad_sse, _ = controller_metrics(p["overshoot_percent"], p["settling_time_2"], sse=2e-4)
-    verdicts = [checks.second_order([view(x)])[0].passed for x in (good, bad_os, bad_ts, bad_sse)]
+    verdicts = [theory.second_order([view(x)])[0].passed for x in (good, bad_os, bad_ts, bad_sse)]
     assert verdicts == [True, False, False, False]
 
 
@@ -248,12 +253,12 @@ def test_final_error_tracking_and_degradation_checks():
         return {"joints": ["j1"], "tracking_error": {"whole_record": {"rms": {"j1": rms}}}}
 
     runs = [view(tracked(x), f"w{x}") for x in (0.01, 0.02, 0.05)]
-    assert checks.tracking_grows(runs)[0].passed is True
-    assert checks.tracking_grows(runs[::-1])[0].passed is False
-    assert checks.degrades(runs)[0].passed is True
-    assert checks.degrades(runs[::-1])[0].passed is False
+    assert theory.tracking_grows(runs)[0].passed is True
+    assert theory.tracking_grows(runs[::-1])[0].passed is False
+    assert theory.degrades(runs)[0].passed is True
+    assert theory.degrades(runs[::-1])[0].passed is False
     fe = [view({"joints": ["j1"], "final_error": {"j1": e}}) for e in (5e-4, 2e-3)]
-    assert [o.passed for o in checks.final_error(fe, tol=1e-3)] == [True, False]
+    assert [o.passed for o in theory.final_error(fe, tol=1e-3)] == [True, False]
 
 
 def test_pd_offset_check_balances_gravity_against_the_spring():
@@ -277,8 +282,8 @@ def test_pd_offset_check_balances_gravity_against_the_spring():
         }
         return view(c, events=[{"q": q.tolist()}])
 
-    assert checks.pd_offset([run(q_e)])[0].passed is True
-    assert checks.pd_offset([run(q_e + 0.01)])[0].passed is False
+    assert theory.pd_offset([run(q_e)])[0].passed is True
+    assert theory.pd_offset([run(q_e + 0.01)])[0].passed is False
 
 
 def test_gravity_bound_is_the_largest_gravity_jacobian_norm():
@@ -286,7 +291,7 @@ def test_gravity_bound_is_the_largest_gravity_jacobian_norm():
     ∂g/∂q = −9.81 [[75 s1 + 25 s12, 25 s12], [25 s12, 25 s12]], largest in norm at
     s1 = s12 = ±1: 9.81 · λ_max([[100, 25], [25, 25]]) = 9.81 · (125 + √8125) / 2."""
     exact = 9.81 * (125 + np.sqrt(8125.0)) / 2
-    alpha = checks.gravity_bound("planar_2dof", samples=2000)
+    alpha = theory.gravity_bound("planar_2dof", samples=2000)
     assert alpha <= exact * (1 + 1e-9)  # sampled: never above the supremum
     assert alpha > 0.995 * exact
 

@@ -14,8 +14,8 @@ from joint_space_control.analysis.spec import (
     judge,
     parse_spec,
 )
-from joint_space_control.experiments.checks import evaluate
-from joint_space_control.experiments.views import RunView
+from joint_space_control.experiments.judging.outcome import RunView
+from joint_space_control.experiments.judging.theory import evaluate
 from tests.unit.tuning_fakes import controller_metrics
 
 

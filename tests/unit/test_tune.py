@@ -16,8 +16,8 @@ from optuna.trial import TrialState
 from joint_space_control.analysis.spec import parse_spec
 from joint_space_control.cli import tune as tune_cli
 from joint_space_control.cli.main import main
-from joint_space_control.experiments import scenario as scenarios
-from joint_space_control.experiments.params_file import node_parameters, with_params_file
+from joint_space_control.experiments.scenarios import format as scenarios
+from joint_space_control.experiments.scenarios.params_file import node_parameters, with_params_file
 from joint_space_control.laws.gains import FROM_KP, FROM_OMEGA_N, choose_gains
 from joint_space_control.tuning import outputs
 from joint_space_control.tuning.problem import TuneProblem, step_inside_limits
@@ -141,7 +141,7 @@ def test_the_params_file_loads_as_the_controller_node_reads_it(tmp_path):
     from rclpy.context import Context
     from rclpy.node import Node
 
-    from joint_space_control.experiments.domains import lease_domain
+    from joint_space_control.experiments.harness.domains import lease_domain
     from joint_space_control.nodes.controller_base import COMMON_PARAMETERS
     from joint_space_control.ros.parameters import ParamValues, value
 

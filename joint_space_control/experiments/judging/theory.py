@@ -20,11 +20,11 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.analysis.spec import judge, parse_spec
-from joint_space_control.experiments import boundaries, practice, views
-from joint_space_control.experiments.boundaries import gravity_bound
-from joint_space_control.experiments.views import Outcome, RunView
+from joint_space_control.experiments.judging import boundaries, practical
+from joint_space_control.experiments.judging.boundaries import gravity_bound
+from joint_space_control.experiments.judging.outcome import Outcome, RunView, fmt, joints, vec
 
-_fmt, _joints, _vec = views.fmt, views.joints, views.vec
+_fmt, _joints, _vec = fmt, joints, vec
 
 
 def final_error(runs: list[RunView], tol: float = 1e-3) -> list[Outcome]:
@@ -408,7 +408,7 @@ CHECKS: dict[str, Callable[..., list[Outcome]]] = {
     "peak_torque_grows": peak_torque_grows,
     "saturation_boundary": saturation_boundary,
     "spec": spec,
-    **practice.CHECKS,
+    **practical.CHECKS,
 }
 
 

@@ -5,8 +5,8 @@ Each run starts ``sim_bridge`` (lockstep, paused), the scenario's controller and
 would), sends the reference, applies the scheduled changes at exact simulation times, stops
 everything, and analyses the bag into ``<run>/report``. Variants run in parallel, each in
 its own ROS domain: each run is a task (:func:`execute_run`) of a
-:class:`~joint_space_control.experiments.distributed.RunPool`, in threads of this process or
-on the workers of a Dask cluster, which then write into an ``out`` they all reach.
+:class:`~joint_space_control.experiments.execution.distributed.RunPool`, in threads of this
+process or on the workers of a Dask cluster, which then write into an ``out`` they all reach.
 
 A scenario of several robots runs them in one world (one ``sim_bridge``, a controller per
 robot in its namespace, one bag) and gives one result per robot, as if each were a run of
@@ -32,11 +32,11 @@ import numpy as np
 from joint_space_control.analysis.bag import BagReader, ControllerState, JointStates, joint_states
 from joint_space_control.analysis.pipeline import analyze_bag_to
 from joint_space_control.arrays import per_joint
-from joint_space_control.experiments import values
-from joint_space_control.experiments.distributed import RunPool, on_cancel
-from joint_space_control.experiments.loop import TRUTH_TOPIC, ClosedLoop
-from joint_space_control.experiments.probe import in_namespace
-from joint_space_control.experiments.scenario import RobotSetup, Scenario, build_reference
+from joint_space_control.experiments.execution import values
+from joint_space_control.experiments.execution.distributed import RunPool, on_cancel
+from joint_space_control.experiments.harness.loop import TRUTH_TOPIC, ClosedLoop
+from joint_space_control.experiments.harness.probe import in_namespace
+from joint_space_control.experiments.scenarios.format import RobotSetup, Scenario, build_reference
 from joint_space_control.laws.pd_gravity import iterative_gravity_estimate
 from joint_space_control.trajectories.reference import Trajectory
 
@@ -253,7 +253,7 @@ def run_once(
             loop.settle_recording()
     else:
         # pybullet (its banner on stdout) only where a run is
-        from joint_space_control.experiments.inprocess import InProcessLoop
+        from joint_space_control.experiments.execution.inprocess import InProcessLoop
 
         loop = InProcessLoop(scenario.setups(), sim_params, bag)
         try:
@@ -314,7 +314,7 @@ def true_states(bag: Path, namespace: str = "") -> JointStates | None:
 
 class RunLoop(Protocol):
     """What driving a run needs of its engine (:class:`RosRun`, or the in-process
-    :class:`~joint_space_control.experiments.inprocess.InProcessLoop`); ``namespace``
+    :class:`~joint_space_control.experiments.execution.inprocess.InProcessLoop`); ``namespace``
     names the robot ("": the one robot)."""
 
     def send_reference(

@@ -25,7 +25,7 @@ Cancellation (Ctrl-C, :meth:`RunPool.cancel`): queued tasks are dropped and runn
 stopped. A flag (a ``distributed.Event`` named per pool on a cluster, a ``threading.Event``
 here) is watched by each task from a thread beside it on its worker; once it is set, that
 thread calls what the task registered with :func:`on_cancel` (a run: closing its
-:class:`~joint_space_control.experiments.loop.ClosedLoop`, which stops its node processes),
+:class:`~joint_space_control.experiments.harness.loop.ClosedLoop`, which stops its node processes),
 and the task ends.
 """
 

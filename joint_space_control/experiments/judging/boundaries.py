@@ -44,13 +44,14 @@ import numpy as np
 from joint_space_control.arrays import per_joint
 
 if TYPE_CHECKING:
-    from joint_space_control.experiments.scenario import Axis, Scenario
+    from joint_space_control.experiments.scenarios.format import Axis, Scenario
     from joint_space_control.model.dynamics import RobotModel
 
 
 class Settings(Protocol):
-    """What a boundary reads of a run: a :class:`~.scenario.Scenario`, or a check's
-    :class:`~.views.RunView`."""
+    """What a boundary reads of a run: a
+    :class:`~joint_space_control.experiments.scenarios.format.Scenario`, or a check's
+    :class:`~joint_space_control.experiments.judging.outcome.RunView`."""
 
     robot: str
     plant: dict[str, Any]
@@ -67,7 +68,7 @@ SAMPLES_PER_CELL = 4
 class Curve:
     """A boundary in axis coordinates: ``coords[key]`` the values along the axis of ``key``
     (one sequence per axis of the plane, of equal length; NaN where undefined), placed on a
-    heat map by :meth:`~joint_space_control.experiments.scenario.Axis.positions`."""
+    heat map by :meth:`~joint_space_control.experiments.scenarios.format.Axis.positions`."""
 
     label: str
     coords: dict[str, Any]
@@ -124,8 +125,8 @@ def gravity_bound(
 
 def controller_model(settings: Settings) -> RobotModel:
     """The controller's own model B̂, ĝ of a run, as its node builds it from its parameters
-    (:func:`~joint_space_control.experiments.values.controller_model`)."""
-    from joint_space_control.experiments import values
+    (:func:`~joint_space_control.experiments.execution.values.controller_model`)."""
+    from joint_space_control.experiments.execution import values
 
     executable = getattr(settings, "executable", "") or settings.controller
     given = getattr(settings, "given", settings.parameters)  # a RunView's own, or a Scenario's
@@ -165,7 +166,7 @@ def step_of(scenario: Settings) -> tuple[np.ndarray, np.ndarray]:
     limits, as the plant does) and the step to the reference's target [rad]."""
     if scenario.reference.get("shape") != "step":
         raise ValueError(f"needs a step reference, got {scenario.reference.get('shape')!r}")
-    from joint_space_control.experiments import values
+    from joint_space_control.experiments.execution import values
 
     model = controller_model(scenario)
     q0 = per_joint(
@@ -197,7 +198,7 @@ def _check_saturation(data: Mapping[str, Any]) -> None:
 
 def alpha_of(scenario: Settings) -> float:
     """α of a run's plant (:func:`gravity_bound` with ``plant.payload_mass``)."""
-    from joint_space_control.experiments import values
+    from joint_space_control.experiments.execution import values
 
     plant = values.plant_values(scenario.robot, scenario.plant)
     return gravity_bound(scenario.robot, float(plant["payload_mass"]))

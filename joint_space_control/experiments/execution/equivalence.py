@@ -2,8 +2,8 @@
 bit, apart from what only the recording's clock decides.
 
 A lockstep run does not depend on timing, so the ROS engine and the in-process engine
-(:mod:`~joint_space_control.experiments.inprocess`) must agree to the last bit on every
-metric of the control (errors, overshoot, settling, torque demand, the configuration in
+(:mod:`~joint_space_control.experiments.execution.inprocess`) must agree to the last bit on
+every metric of the control (errors, overshoot, settling, torque demand, the configuration in
 force) and on every check's text. What legitimately differs is what the bag's log times
 and its bookkeeping say: the recorder's receive times on ROS (wall clock) against the
 simulated times in process, and the wall-time topics only the recorder takes

@@ -2,9 +2,10 @@
 
 Each figure is a function ``(result, path)`` drawing from the runs' recorded controller
 states (``RunResult.state``) and the checks' numbers (``Outcome.numbers``), so that what is
-drawn is what was checked. ``result`` is an :class:`~.experiment.ExperimentResult` (typed
-loosely here: the experiment module imports this one). matplotlib is imported when a figure
-is drawn, not when a scenario is loaded.
+drawn is what was checked. ``result`` is an
+:class:`~joint_space_control.experiments.experiment.ExperimentResult` (typed loosely here:
+the experiment module imports this one). matplotlib is imported when a figure is drawn, not
+when a scenario is loaded.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from joint_space_control.experiments.scenario import Scenario
+from joint_space_control.experiments.scenarios.format import Scenario
 
 WILDCARD = "/**"
 

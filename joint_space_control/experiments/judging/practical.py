@@ -1,11 +1,11 @@
 """Theory checks of the practical specifications (THEORY.md §4): disturbances, friction,
 accuracy and repeatability, sampling, bandwidth, measurement noise.
 
-Pure like :mod:`~joint_space_control.experiments.checks` (which registers these): runs in,
-:class:`~joint_space_control.experiments.views.Outcome` out, each with the measured number
-next to the prediction and the tolerance it is judged with. The numbers an experiment's
-figure draws are in ``Outcome.numbers`` (experiments/figures.py), so what is drawn is what
-was checked.
+Pure like :mod:`~joint_space_control.experiments.judging.theory` (which registers these):
+runs in, :class:`~joint_space_control.experiments.judging.outcome.Outcome` out, each with the
+measured number next to the prediction and the tolerance it is judged with. The numbers an
+experiment's figure draws are in ``Outcome.numbers`` (experiments/presentation/figures.py),
+so what is drawn is what was checked.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import numpy as np
 
 from joint_space_control.analysis import frequency
 from joint_space_control.analysis.metrics import position_spread
-from joint_space_control.experiments.boundaries import gravity_jacobian
-from joint_space_control.experiments.views import Outcome, RunView, fmt, joints, vec
+from joint_space_control.experiments.judging.boundaries import gravity_jacobian
+from joint_space_control.experiments.judging.outcome import Outcome, RunView, fmt, joints, vec
 from joint_space_control.laws.disturbance import (
     coulomb_dead_band,
     inverse_dynamics_static_offset,

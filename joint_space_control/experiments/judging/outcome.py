@@ -1,5 +1,6 @@
-"""What the theory checks see of a run, and what they say (shared by experiments/checks.py
-and experiments/practice.py)."""
+"""What the theory checks see of a run (:class:`RunView`), and what they say of it
+(:class:`Outcome`): shared by the §5 checks (judging/theory.py) and the §4 ones
+(judging/practical.py)."""
 
 from __future__ import annotations
 
@@ -11,12 +12,17 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.analysis.bag import ControllerState, JointStates
-from joint_space_control.experiments import values
+from joint_space_control.experiments.execution import values
 from joint_space_control.model.dynamics import RobotModel
 
 
 @dataclass
 class Outcome:
+    """One check's verdict: ``passed`` True or False where the theory makes a claim, None
+    where it does not; ``text`` the measured numbers beside the prediction and the tolerance,
+    as the summary prints them; ``numbers`` what an experiment's figures draw, so that what
+    is drawn is what was checked."""
+
     check: str
     passed: bool | None
     text: str
@@ -25,9 +31,9 @@ class Outcome:
 
 @dataclass
 class RunView:
-    """What a check needs of one run (see runner.RunResult). ``parameters`` and ``plant``
-    are the values the nodes ran with: the scenario's over the declared defaults
-    (:mod:`~joint_space_control.experiments.values`), so a check reads
+    """What a check needs of one run (see execution.runner.RunResult). ``parameters`` and
+    ``plant`` are the values the nodes ran with: the scenario's over the declared defaults
+    (:mod:`~joint_space_control.experiments.execution.values`), so a check reads
     ``r.parameters["rate"]`` and never types a default of its own."""
 
     label: str

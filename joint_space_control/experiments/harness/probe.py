@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
-from joint_space_control.experiments.client import RosClient
+from joint_space_control.experiments.harness.client import RosClient
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import DIAGNOSTICS_QOS, statuses
 from joint_space_control.ros.messages import (

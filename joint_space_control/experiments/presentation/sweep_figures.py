@@ -18,8 +18,8 @@ quantity: rows (y) the first axis, columns (x) the second, each cell annotated w
 value; a failed run's cell is hatched, an undefined value's cell grey with "n/a", a run not
 made (the short form) blank. Axes are labelled with label [unit] and ticked at the grid
 values, evenly spaced (a log axis too). With more axes, each combination of their values is
-a row of panels. The scenario's theory boundary (experiments/boundaries.py) is drawn on every
-panel, placed by :meth:`~joint_space_control.experiments.scenario.Axis.positions`.
+a row of panels. The scenario's theory boundary (experiments/judging/boundaries.py) is drawn on
+every panel, placed by :meth:`~joint_space_control.experiments.scenarios.format.Axis.positions`.
 
 ``result`` is an :class:`~joint_space_control.experiments.experiment.ExperimentResult`, or
 anything with ``scenario`` and ``runs`` whose items have ``label``, ``error`` and, when the
@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from joint_space_control.experiments import boundaries
+from joint_space_control.experiments.judging import boundaries
 
 #: Heat-map panels per row of a two-axis grid.
 PANELS_PER_ROW = 3

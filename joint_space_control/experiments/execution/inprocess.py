@@ -1,6 +1,6 @@
 """The in-process engine: a lockstep run's world, controllers and bag in this process.
 
-The ROS engine (:class:`~joint_space_control.experiments.loop.ClosedLoop`) starts
+The ROS engine (:class:`~joint_space_control.experiments.harness.loop.ClosedLoop`) starts
 ``sim_bridge``, a controller per robot and the recorder as processes and lets them talk over
 DDS. This engine runs the same objects on the same numbers without a ROS graph:
 
@@ -49,8 +49,8 @@ from joint_space_control.control.configure import (
 )
 from joint_space_control.control.controller import Step
 from joint_space_control.control.sampling import VelocitySource
-from joint_space_control.experiments.probe import in_namespace
-from joint_space_control.experiments.scenario import RobotSetup
+from joint_space_control.experiments.harness.probe import in_namespace
+from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.recording.bag_writer import BagWriter
 from joint_space_control.ros.messages import (
     STATE_FIELDS,

@@ -17,7 +17,7 @@ changes:                                   # optional, at simulation times (lock
   - {at: 4.0, controller: {gravity_compensation: full}}
   - {at: 8.0, plant: {payload_mass: 5.0}}
   - {at: 12.0, update: iterative_gravity}  # u ← u + K_P (q_d − q), from the measured q
-figures: [overlay]                         # optional extra figures (experiments/figures.py)
+figures: [overlay]                         # optional extra figures (presentation/figures.py)
 variants:                                  # optional: one run per value (a sweep)
   name: omega                              # label of the swept quantity
   key: reference.omega                     # what each value replaces
@@ -27,12 +27,13 @@ variants:                                  # optional: one run per value (a swee
   # or several settings per run:
   # runs: [{label: id, set: {parameters.law: inverse_dynamics, parameters.omega_n: 10}}]
   # (``controller: inverse_dynamics_controller`` in ``set`` switches the executable)
-checks: [...]                              # theory checks, see experiments/checks.py
+checks: [...]                              # theory checks, see judging/theory.py
 ```
 
 A **grid** sweeps the product of two or more axes, in row-major order (the last axis varies
-fastest), and draws one heat map per metric (experiments/sweep_figures.py): the first axis
-gives the rows (y), the second the columns (x), each further axis a row of panels per value:
+fastest), and draws one heat map per metric (experiments/presentation/sweep_figures.py): the
+first axis gives the rows (y), the second the columns (x), each further axis a row of panels
+per value:
 
 ```yaml
 variants:
@@ -45,7 +46,7 @@ variants:
     # name: defaults to the last part of the key; also: [other keys set to the same value],
     # e.g. {key: plant.payload_mass, also: [parameters.model_payload_mass], ...}
   boundary: saturation_onset               # optional: a theory boundary on every heat map
-                                           # (experiments/boundaries.py)
+                                           # (judging/boundaries.py)
   short: [...]                             # optional run labels (default: the corners)
 ```
 
@@ -83,8 +84,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from joint_space_control.experiments import boundaries
-from joint_space_control.experiments.figures import FIGURES
+from joint_space_control.experiments.judging import boundaries
+from joint_space_control.experiments.presentation.figures import FIGURES
 from joint_space_control.paths import experiments_dir
 from joint_space_control.trajectories import shapes
 from joint_space_control.trajectories.reference import Trajectory
@@ -228,7 +229,7 @@ class Variants:
     grid_index: tuple[tuple[int, ...], ...] = ()
     """A grid: each run's index along :attr:`axes`, in the order of :attr:`runs`."""
     boundary: str | None = None
-    """A grid: the theory boundary drawn on its heat maps (experiments/boundaries.py)."""
+    """A grid: the theory boundary drawn on its heat maps (experiments/judging/boundaries.py)."""
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -275,7 +276,8 @@ class Scenario:
     checks: list[dict[str, Any]]
     notes: str = ""
     figures: tuple[str, ...] = ()
-    """Extra figures of the experiment (experiments/figures.py), beside the standard ones."""
+    """Extra figures of the experiment (experiments/presentation/figures.py), beside the
+    standard ones."""
     robots: tuple[RobotSetup, ...] = ()
     """Several robots in one world (each in its namespace); then ``robot`` and
     ``controller`` name them all joined by " + " (for listings), ``plant`` holds the world's

@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from joint_space_control.experiments.domains import lease_domain
-from joint_space_control.experiments.probe import LoopProbe, in_namespace
-from joint_space_control.experiments.processes import ProcessGroup
-from joint_space_control.experiments.scenario import RobotSetup
+from joint_space_control.experiments.harness.domains import lease_domain
+from joint_space_control.experiments.harness.probe import LoopProbe, in_namespace
+from joint_space_control.experiments.harness.processes import ProcessGroup
+from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.recording.selection import world_topics
 
 #: After the last state of a run, the recorder is asked every RECORD_POLL [s] what it holds,
