@@ -53,6 +53,7 @@ def test_recorded_run_reads_back_with_both_readers(make_loop, tmp_path):
     loop.start(JOINTS[ROBOT], [SETPOINTS[ROBOT]])
     loop.run_until(1.5)
     loop.pause()
+    loop.settle_recording()  # the recorder takes the tail (a loaded machine delays it)
     t, q, _, _ = loop.probe.recording.arrays()
     loop.close()
 

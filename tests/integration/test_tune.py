@@ -97,7 +97,12 @@ def test_tune_meets_the_spec_and_a_fresh_experiment_confirms_the_gains(tmp_path)
 def test_ctrl_c_fails_the_trials_in_flight_and_the_same_command_resumes(tmp_path):
     out = tmp_path / "tune"
     proc, output, leftovers = interrupt_once_running(
-        [*TUNE, "--out", str(out), "--trials", "3"], "trials/*/bag/*.mcap", out, running=1.0
+        # the ROS engine: its trials are node processes that must be stopped, and each takes
+        # seconds (in process all three end within a second of the first bag)
+        [*TUNE, "--out", str(out), "--trials", "3", "--engine", "ros"],
+        "trials/*/bag/*.mcap",
+        out,
+        running=1.0,
     )
     assert proc.returncode == 130, output
     assert "resumes the study" in output and "Traceback" not in output
