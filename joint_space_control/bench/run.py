@@ -383,8 +383,23 @@ def goals(result: dict[str, Any]) -> list[dict[str, Any]]:
             hog["brakes"] if hog else None,
             lambda v: v == 0,
         ),
+        goal(
+            "sweep of 1 s runs in process, 1 worker: >= 70 runs/min (issue 25: 10x the 7 of "
+            "the ROS engine)",
+            _sweep_rate(result.get("sweep"), "inprocess", 1),
+            lambda v: v >= 70.0,
+        ),
         *(goal(*row) for row in dashboard_goals(result.get("dashboard"))),
     ]
+
+
+def _sweep_rate(sweep: dict[str, Any] | None, engine: str, workers: int) -> float | None:
+    """Runs per minute of the sweep section's row for ``engine`` on ``workers`` workers."""
+    rows = (sweep or {}).get("rows", [])
+    row = next(
+        (r for r in rows if r.get("engine") == engine and r.get("workers") == workers), None
+    )
+    return row["runs_per_minute"] if row else None
 
 
 def _f(value: Any, digits: int = 0) -> str:
