@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import socket
 import threading
 import time
@@ -105,6 +106,16 @@ PARAMETERS = (
         unit="Hz",
         minimum=0.0,
         exclusive=True,
+    ),
+    params.ParamSpec(
+        "niceness",
+        10,
+        "Scheduling niceness of the dashboard's process (0: as the loop's nodes; up to 19, "
+        "the lowest priority): the loop's processes first when the cores are busy",
+        read_only=True,
+        minimum=0.0,
+        maximum=19.0,
+        step=1.0,
     ),
 )
 
@@ -206,6 +217,9 @@ class Dashboard(Node):
                 f"serving on {host}: anyone who reaches {host}:{port} can command the robot "
                 "(change gains, send references, pause and push the plant)"
             )
+        # best effort beside the loop: behind its nodes for the CPU (docs/dashboard.md)
+        niceness = int(params.value(values, "niceness"))
+        os.setpriority(os.PRIO_PROCESS, 0, max(niceness, os.getpriority(os.PRIO_PROCESS, 0)))
         self._window = params.value(values, "window")
         self._lock = threading.RLock()
         self._robots: dict[str, RobotState] = {}
