@@ -88,6 +88,7 @@ from sim_bridge.parameters import (
     MODES,  # noqa: F401  (re-exported: the modes of the node)
     PARAMETERS,
     ROBOT_OWN,
+    changed_by_robot,
     lockstep_period,
     prefixed,
     robot_names,
@@ -281,12 +282,12 @@ class SimBridge(Node):
             timeout = params.value(values, "command_timeout")
             reject_factor = params.value(values, "reject_factor")
             pause_at = self._pause_time(values)
-            updates = []
-            for robot in self.robots:
-                key = f"{robot.name}." if robot.name else ""
-                own = {name[len(key) :] for name in changed if name.startswith(key)}
-                if own & {spec.name for spec in ROBOT_OWN}:
-                    updates.append(robot.update(robot_values(values, robot.name), own))
+            by_robot = changed_by_robot((r.name for r in self.robots), changed)
+            updates = [
+                robot.update(robot_values(values, robot.name), by_robot[robot.name])
+                for robot in self.robots
+                if robot.name in by_robot
+            ]
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter update: {err}")
             return SetParametersResult(successful=False, reason=str(err))

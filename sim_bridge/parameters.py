@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from joint_space_control.control import parameters as params
@@ -283,6 +283,21 @@ def robot_values(values: params.ParamValues, name: str) -> params.ParamValues:
     return params.ParamValues(
         ROBOT_OWN, {spec.name: values[key + spec.name] for spec in ROBOT_OWN}
     )
+
+
+def changed_by_robot(robots: Iterable[str], changed: Iterable[str]) -> dict[str, set[str]]:
+    """Of the parameter names ``changed``, each robot's own (without its ``<name>.``
+    prefix; "" is the one robot of a world, whose names have none), for the robots where a
+    plant parameter is among them: what each robot has to update."""
+    own = {spec.name for spec in ROBOT_OWN}
+    changed = list(changed)
+    out = {}
+    for name in robots:
+        key = f"{name}." if name else ""
+        mine = {k[len(key) :] for k in changed if k.startswith(key)}
+        if mine & own:
+            out[name] = mine
+    return out
 
 
 def lockstep_period(values: params.ParamValues) -> tuple[int, int]:

@@ -17,3 +17,22 @@ JOINTS = {
     "planar_2dof": ["joint1", "joint2"],
     "iiwa": [f"lbr_iiwa_joint_{i}" for i in range(1, 8)],
 }
+#: Inverse dynamics: start configurations and steps whose peak torque B(q0)K_PΔ + g(q0)
+#: stays well inside the effort limits (the second-order theory holds only without
+#: saturation).
+ID_CASES = {
+    "planar_2dof": {
+        "q0": [-1.0, 0.5],
+        "omega_n": [8.0, 12.0],
+        "zeta": [0.5, 0.8],
+        "step": [0.1, -0.15],
+        "duration": 2.5,
+    },
+    "iiwa": {
+        "q0": [0.0, 0.3, 0.0, -1.2, 0.0, 0.6, 0.0],
+        "omega_n": [8.0, 8.0, 10.0, 10.0, 12.0, 12.0, 12.0],
+        "zeta": [0.5, 0.6, 0.7, 0.5, 0.6, 0.7, 0.8],
+        "step": [0.1, -0.1, 0.1, 0.1, -0.1, 0.1, 0.1],
+        "duration": 2.5,
+    },
+}

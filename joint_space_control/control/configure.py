@@ -287,6 +287,16 @@ class ControllerKind:
         perturbations."""
         return params.robot_model(values, model_perturbation(values), description)
 
+    def reconfigure(
+        self, values: params.ParamValues, model: RobotModel, trigger: str
+    ) -> tuple[RobotModel, Any, Sampling]:
+        """What a runtime update swaps in, from the new values: ``model`` with their
+        ``model_*`` perturbations, the configuration and the sampling (``trigger`` in
+        force; ValueError with the reason for invalid values)."""
+        model = model.with_perturbation(model_perturbation(values))
+        rate = params.value(values, "rate")
+        return model, self.config_from(values, model), sampling(values, trigger, rate)
+
     def controller(
         self, values: params.ParamValues, model: RobotModel | None = None, trigger: str = "state"
     ) -> Controller:

@@ -369,6 +369,16 @@ def robot_model(
     )
 
 
+def refused_at_run_time(specs: Mapping[str, ParamSpec], names: Iterable[str]) -> list[str]:
+    """Why each of ``names`` cannot be set while a node runs, as rclpy refuses it: no such
+    parameter, or read-only (``name: reason``; empty when all can be set)."""
+    return [
+        f"{name}: " + ("no such parameter" if name not in specs else "read-only")
+        for name in names
+        if name not in specs or specs[name].read_only
+    ]
+
+
 def defaults(specs: Iterable[ParamSpec], **given: Any) -> ParamValues:
     """The values of ``specs``: their defaults, with ``given`` over them (a name that is
     none of them is a ValueError naming it: a typo must not pass silently)."""

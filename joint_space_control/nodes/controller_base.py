@@ -332,11 +332,9 @@ class JointController(Node):
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         values = params.with_changes(self, self._specs, changes)
         try:
-            model = self._model_for(values)
-            config = self.build_config(values, model)
+            model, config, new_sampling = self.KIND.reconfigure(values, self.model, self.trigger)
             timeout = params.value(values, "state_timeout")
             reject_factor = params.value(values, "reject_factor")
-            new_sampling = sampling(values, self.trigger, self._rate)
             with self._lock:  # between two ticks
                 self.core.set_config(config)  # swapped whole; a tick reads it once
                 self.core.set_sampling(new_sampling)
@@ -378,10 +376,6 @@ class JointController(Node):
             topic = self._state_topic
             return f"joint state time goes backwards and forwards (two publishers of {topic}?)"
         return None
-
-    def _model_for(self, values: dict[str, Any]) -> RobotModel:
-        """The current model, or a new one if the model parameters changed."""
-        return self.model.with_perturbation(model_perturbation(values))
 
     def _publish_config(self, values: dict[str, Any]) -> None:
         self._config_pub.publish(

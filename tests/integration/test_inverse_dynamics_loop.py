@@ -11,31 +11,13 @@ import pytest
 
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
+from tests.loops import ID_CASES as CASES
 
 from .conftest import JOINTS
 
 pytestmark = pytest.mark.integration
 
 CONTROLLER = "inverse_dynamics_controller"
-#: Start configurations and steps whose peak torque B(q0)K_PΔ + g(q0) stays well inside the
-#: effort limits (the second-order theory holds only without saturation).
-CASES = {
-    "planar_2dof": {
-        "q0": [-1.0, 0.5],
-        "omega_n": [8.0, 12.0],
-        "zeta": [0.5, 0.8],
-        "step": [0.1, -0.15],
-        "duration": 2.5,
-    },
-    "iiwa": {
-        "q0": [0.0, 0.3, 0.0, -1.2, 0.0, 0.6, 0.0],
-        "omega_n": [8.0, 8.0, 10.0, 10.0, 12.0, 12.0, 12.0],
-        "zeta": [0.5, 0.6, 0.7, 0.5, 0.6, 0.7, 0.8],
-        "step": [0.1, -0.1, 0.1, 0.1, -0.1, 0.1, 0.1],
-        "duration": 2.5,
-    },
-}
-T_S = 1e-3  # control period [s]
 
 
 def id_loop(make_loop, robot: str, law: str = "inverse_dynamics", **params):

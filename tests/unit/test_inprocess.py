@@ -29,28 +29,12 @@ from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from tests.corpus import BY_NAME, PACKAGE_PATHS
-from tests.loops import GAINS, SETPOINTS
+from tests.loops import GAINS, ID_CASES, SETPOINTS
 from tests.unit.test_corpus import step_inside_limits
 
 T_S = 1e-3  # control period [s]
 CONTROLLER = "inverse_dynamics_controller"
-#: Steps whose peak torque B(q0)K_PΔ + g(q0) stays well inside the effort limits.
-CASES = {
-    "planar_2dof": {
-        "q0": [-1.0, 0.5],
-        "omega_n": [8.0, 12.0],
-        "zeta": [0.5, 0.8],
-        "step": [0.1, -0.15],
-        "duration": 2.5,
-    },
-    "iiwa": {
-        "q0": [0.0, 0.3, 0.0, -1.2, 0.0, 0.6, 0.0],
-        "omega_n": [8.0, 8.0, 10.0, 10.0, 12.0, 12.0, 12.0],
-        "zeta": [0.5, 0.6, 0.7, 0.5, 0.6, 0.7, 0.8],
-        "step": [0.1, -0.1, 0.1, 0.1, -0.1, 0.1, 0.1],
-        "duration": 2.5,
-    },
-}
+CASES = ID_CASES
 
 
 @pytest.fixture

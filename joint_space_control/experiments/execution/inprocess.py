@@ -44,8 +44,6 @@ from joint_space_control.control import parameters as params
 from joint_space_control.control.configure import (
     config_document,
     controller_kind,
-    model_perturbation,
-    sampling,
 )
 from joint_space_control.control.controller import Step
 from joint_space_control.control.sampling import VelocitySource
@@ -65,7 +63,7 @@ from sim_bridge.parameters import (
     PARAMETERS as PLANT_PARAMETERS,
 )
 from sim_bridge.parameters import (
-    ROBOT_OWN,
+    changed_by_robot,
     flat,
     lockstep_period,
     prefixed,
@@ -204,18 +202,12 @@ class InProcessController:
         and the sampling swapped whole, ``~/config`` published again (EngineError naming
         what the node refuses)."""
         specs = {spec.name: spec for spec in self.kind.parameters}
-        refused = [
-            f"{name}: " + ("no such parameter" if name not in specs else "read-only")
-            for name in changes
-            if name not in specs or specs[name].read_only
-        ]
+        refused = params.refused_at_run_time(specs, changes)
         if refused:
             raise EngineError(f"{self.node} rejected " + "; ".join(refused))
         values = params.ParamValues(self.kind.parameters, {**self.values, **changes})
         try:
-            model = self.model.with_perturbation(model_perturbation(values))
-            config = self.kind.config_from(values, model)
-            new_sampling = sampling(values, "state", self.rate)
+            model, config, new_sampling = self.kind.reconfigure(values, self.model, "state")
             for name in changes:
                 params.value(values, name)
         except ValueError as err:
@@ -242,13 +234,13 @@ class InProcessLoop:
         record: Path | None = None,
     ) -> None:
         self.setups = list(setups)
+        self._names = [s.name for s in self.setups]  # the robots' namespaces, in order
         one = len(self.setups) == 1 and not self.setups[0].name
         if one:
             given = {"robot": self.setups[0].robot, **sim_params}
         else:
-            names = [s.name for s in self.setups]
             given = {
-                "robots": names,
+                "robots": self._names,
                 **{s.name: {"robot": s.robot, **s.plant} for s in self.setups},
                 **sim_params,
             }
@@ -317,7 +309,7 @@ class InProcessLoop:
         """The robot's reference, taken by its controller now (before the first state:
         it starts at t = 0, as the ROS engine's does)."""
         msg = reference_message(joints, positions, times, 0, velocities, accelerations)
-        controller = self.controllers[[s.name for s in self.setups].index(namespace)]
+        controller = self.controllers[self._names.index(namespace)]
         controller.take_reference(msg, max(self.t_ns, 0) * 1e-9)
 
     def run_until(self, t: float) -> None:
@@ -372,12 +364,12 @@ class InProcessLoop:
 
     def positions(self, namespace: str = "") -> np.ndarray:
         """The robot's last published (measured) joint positions."""
-        index = [s.name for s in self.setups].index(namespace)
+        index = self._names.index(namespace)
         return self._images[index][0].position.copy()
 
     def gains(self, namespace: str = "") -> np.ndarray:
         """K_P in force on the robot's controller (as its ``~/config`` says)."""
-        index = [s.name for s in self.setups].index(namespace)
+        index = self._names.index(namespace)
         gains = self.controllers[index].core.config.gains
         if gains is None:
             raise EngineError("the gains are not designed yet (no state answered)")
@@ -385,7 +377,7 @@ class InProcessLoop:
 
     def set_controller(self, namespace: str, changes: Mapping[str, Any]) -> None:
         if changes:
-            index = [s.name for s in self.setups].index(namespace)
+            index = self._names.index(namespace)
             self.controllers[index].set_parameters(changes)
 
     def set_plant(self, changes: Mapping[str, Any]) -> None:
@@ -394,30 +386,21 @@ class InProcessLoop:
         changes = {k: v for k, v in flat(changes).items() if k != "pause_at"}
         if not changes:
             return
-        unknown = [k for k in changes if k not in self.plant_values.specs]
-        read_only = [
-            k
-            for k in changes
-            if k in self.plant_values.specs and self.plant_values.specs[k].read_only
-        ]
-        if unknown or read_only:
-            what = [f"{k}: no such parameter" for k in unknown] + [
-                f"{k}: read-only" for k in read_only
-            ]
-            raise EngineError("sim_bridge rejected " + "; ".join(what))
+        refused = params.refused_at_run_time(self.plant_values.specs, changes)
+        if refused:
+            raise EngineError("sim_bridge rejected " + "; ".join(refused))
         values = params.ParamValues(
             self.plant_values.specs.values(), {**self.plant_values, **changes}
         )
-        own = {spec.name for spec in ROBOT_OWN}
-        updates = []
         try:
             for name in changes:
                 params.value(values, name)
-            for setup, robot in zip(self.setups, self.robots, strict=True):
-                key = f"{setup.name}." if setup.name else ""
-                mine = {k[len(key) :] for k in changes if k.startswith(key)}
-                if mine & own:
-                    updates.append(robot.update(robot_values(values, setup.name), mine))
+            by_robot = changed_by_robot(self._names, changes)
+            updates = [
+                robot.update(robot_values(values, name), by_robot[name])
+                for name, robot in zip(self._names, self.robots, strict=True)
+                if name in by_robot
+            ]
         except ValueError as err:
             raise EngineError(f"sim_bridge rejected {err}") from None
         for apply in updates:
