@@ -15,6 +15,7 @@ import json
 import os
 import signal
 import socket
+import subprocess
 import time
 import urllib.request
 from pathlib import Path
@@ -25,6 +26,8 @@ from rclpy.parameter import parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
+
+from joint_space_control.bench.browser import PLOTTING_TEXT
 
 from .browser import chromium
 from .conftest import SETPOINTS
@@ -60,6 +63,23 @@ def wait_for_page(rig: Rig, url: str) -> None:  # noqa: F811
     rig.probe.spin_until(answers, 60.0, f"the dashboard on {url}", rig.group.check_alive)
 
 
+def page_state(page) -> str:
+    """What the page and the machine were doing, for a failure's message: the page's text,
+    its canvases and the busiest processes (a starved page or dashboard shows here)."""
+    text = page.evaluate("document.body ? document.body.innerText : ''")
+    canvases = page.evaluate("document.querySelectorAll('canvas').length")
+    busiest = subprocess.run(
+        ["ps", "-eo", "pid,ni,pcpu,etime,comm", "--sort=-pcpu"],
+        capture_output=True,
+        text=True,
+        check=False,
+    ).stdout.splitlines()[:8]
+    return (
+        f"{canvases} canvases, text {text[:600]!r}; load {os.getloadavg()}; "
+        f"busiest processes: {busiest}"
+    )
+
+
 def open_page(browser, url: str):
     page = browser.new_page(viewport={"width": 1500, "height": 950})
     page.set_default_timeout(PAGE_TIMEOUT_MS)
@@ -74,8 +94,13 @@ def open_page(browser, url: str):
             else None
         ),
     )
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
     page.goto(url)
-    page.get_by_text("Plots").first.wait_for()
+    try:
+        page.get_by_text(PLOTTING_TEXT, exact=True).first.wait_for()
+    except PlaywrightTimeout:
+        raise AssertionError(f"no robot's plots on the page: {page_state(page)}") from None
     # the "software WebGL" notice of headless Chromium covers the scene's corner
     page.evaluate(
         "document.querySelectorAll('.mantine-Notification-closeButton').forEach(b => b.click())"
