@@ -11,7 +11,11 @@ publisher with other QoS turns up later.
 ``~/flush`` (std_srvs/Trigger) writes what the recorder holds to the file and answers the
 messages recorded per topic (a JSON object ``{topic: count}`` in ``message``): a caller that
 knows how many messages were published learns when the recorder has them all (the
-experiment runner does, before it stops a lockstep loop's nodes).
+experiment runner does, before it stops a lockstep loop's nodes). ``~/matched``
+(std_srvs/Trigger) answers, per recorded topic, how many publishers its subscription is
+matched with (``{topic: count}``): a subscription seen in the graph may not be matched yet,
+and what a publisher sends before it is lost to the bag (the experiment runner waits for a
+match on every topic of a run before it starts one).
 
 Each message is stamped with its receive time in the node clock: the simulation time with
 ``use_sim_time:=true``, else the system time. Ctrl-C and SIGTERM close the bag cleanly (the
@@ -184,6 +188,7 @@ class Recorder(Node):
             if flush_period > 0:  # an idle recorder still flushes what it holds
                 self.create_timer(flush_period, self._flush, clock=self._wall)
             self.create_service(Trigger, "~/flush", self._on_flush)
+            self.create_service(Trigger, "~/matched", self._on_matched)
         except BaseException:
             self.bag.close()
             raise
@@ -205,6 +210,19 @@ class Recorder(Node):
             json.dumps({t.name: t.count for t in self.bag.topics.values()})
             if response.success
             else str(self.bag.error)
+        )
+        return response
+
+    def _on_matched(
+        self, _request: Trigger.Request, response: Trigger.Response
+    ) -> Trigger.Response:
+        """``~/matched``: the publishers each recorded topic's subscription is matched with."""
+        response.success = True
+        response.message = json.dumps(
+            {
+                name: sub.get_publisher_count()
+                for name, (sub, _qos) in list(self._recording.items())
+            }
         )
         return response
 

@@ -135,6 +135,11 @@ def test_recorder_flush_answers_what_the_bag_holds(make_loop, tmp_path):
     the bag has every state the probe saw and every answer to them, as the counts said."""
     bag = tmp_path / "bag"
     loop = make_loop(ROBOT, record=bag, sim_params={"pause_at": 0.8})
+    # ~/matched: before the run, each of its topics has its one publisher matched (the loop
+    # waited for it)
+    matched = json.loads(loop.probe.call_trigger("/recorder/matched").message)
+    for name in ["/joint_states", "/effort_command", "/clock", "/reference", STATE_TOPIC]:
+        assert matched[name] == 1, (name, matched)
     loop.start(JOINTS[ROBOT], [SETPOINTS[ROBOT]])
     loop.hold_at(0.8)
     loop.settle_recording()
