@@ -18,6 +18,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -73,6 +74,7 @@ class NodeProcess:
             extra_args = ["-r", f"__ns:=/{namespace}", *(extra_args or [])]
         workdir.mkdir(parents=True, exist_ok=True)
         self.name = f"{namespace}/{name}" if namespace else name
+        self.executable = executable
         self.params_file = workdir / f"{name}.params.yaml"
         self.params_file.write_text(yaml.safe_dump({"/**": {"ros__parameters": dict(params)}}))
         self.log_path = workdir / f"{name}.log"
@@ -124,6 +126,25 @@ class NodeProcess:
         return self.log_path.read_text(errors="replace")
 
 
+def stop_together(nodes: Sequence[NodeProcess], timeout: float = 5.0) -> None:
+    """:meth:`NodeProcess.stop` of every one of ``nodes`` at once: each signal goes to all
+    that still run, then they get ``timeout`` seconds between it and the next."""
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+        running = [n for n in nodes if n.alive()]
+        if not running:
+            break
+        for node in running:
+            node.signal(sig)
+        deadline = time.monotonic() + timeout
+        for node in running:
+            try:
+                node.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                continue
+    for node in nodes:
+        node.stop()  # reaped, its log closed (nothing left to signal)
+
+
 class ProcessGroup:
     """Context manager owning node processes; every one is stopped on exit, also on error."""
 
@@ -169,9 +190,14 @@ class ProcessGroup:
                 )
             )
 
-    def stop_all(self) -> None:
-        for node in reversed(list(self.nodes.values())):
-            node.stop()
+    def stop_all(self, timeout: float = 5.0) -> None:
+        """Stop every node: the recorders last, so that they take what the others sent
+        until they stopped; the others together (SIGINT to each, then SIGTERM and SIGKILL
+        to those still running after ``timeout``): a run's stop costs one node's stop, not
+        the sum of them."""
+        nodes = list(reversed(self.nodes.values()))
+        stop_together([n for n in nodes if n.executable != "recorder"], timeout)
+        stop_together([n for n in nodes if n.executable == "recorder"], timeout)
 
     def __enter__(self) -> ProcessGroup:
         return self
