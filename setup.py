@@ -89,6 +89,7 @@ setup(
     package_data={
         PACKAGE_NAME: ["config/*.yaml", "config/experiments/*.yaml"],
         f"{PACKAGE_NAME}.robots": ["urdf/*.urdf"],
+        f"{PACKAGE_NAME}.experiments.harness": ["*.xml"],
     },
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE_NAME}"]),
