@@ -20,13 +20,13 @@ pytestmark = pytest.mark.integration
 CONTROLLER = "inverse_dynamics_controller"
 
 
-def id_loop(make_loop, robot: str, law: str = "inverse_dynamics", **params):
+def id_loop(make_loop, robot: str, law: str = "inverse_dynamics", sim=None, **params):
     case = CASES[robot]
     return make_loop(
         robot,
         {"law": law, "omega_n": case["omega_n"], "zeta": case["zeta"], **params},
         controller=CONTROLLER,
-        sim_params={"initial_positions": case["q0"]},
+        sim_params={"initial_positions": case["q0"], **(sim or {})},
     )
 
 
@@ -35,12 +35,12 @@ def test_runtime_changes_of_law_gains_and_model_are_validated(make_loop):
     case = CASES[robot]
     q0 = np.array(case["q0"])
     target = q0 + case["step"]
-    loop = id_loop(make_loop, robot)
+    loop = id_loop(make_loop, robot, sim={"pause_at": 0.5})
     loop.start(JOINTS[robot], [target])
-    loop.run_until(0.5)
-    # Paused while the parameters change: the new law and model act from t ≈ 0.5 s however
-    # fast the loop runs compared to the parameter service calls.
-    loop.pause()
+    # The plant pauses itself at t = 0.5 s while the parameters change: the new law and
+    # model act from there however fast the loop runs compared to the service calls (a
+    # pause asked for by a call came, under load, after the loop had passed t = 3 s).
+    loop.hold_at(0.5)
     bad_updates = [
         {"law": "computed_torque"},
         {"omega_n": -3.0},

@@ -26,12 +26,19 @@ from joint_space_control.experiments.harness.processes import ProcessGroup
 from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.recording.selection import world_topics
 
+#: After the recorder's subscriptions are matched with the run's publishers, the time
+#: given to the publishers' side of those matches [s]: seen lagging by about 30 ms (a
+#: lockstep plant's first 57 states and clocks missing from the bag, load 7 on 2 cores).
+MATCH_MARGIN = 0.5
 #: After the last state of a run, the recorder is asked every RECORD_POLL [s] what it holds,
 #: until it has the whole run and its counts have not changed for RECORD_QUIET [s] (at most
 #: RECORD_SETTLE_MAX [s]).
 RECORD_POLL = 0.1
 RECORD_QUIET = 0.5
 RECORD_SETTLE_MAX = 60.0
+#: A recorder whose counts stay short of the run's and unchanged this long [s] has missed
+#: messages for good (not worth waiting RECORD_SETTLE_MAX for).
+RECORD_GAVE_UP = 15.0
 #: The plant's true state beside an imperfect measurement, in a robot's namespace.
 TRUTH_TOPIC = "sim_bridge/true_joint_states"
 #: Topics published by wall-time timers (they grow while the run is paused): not awaited.
@@ -133,15 +140,18 @@ class ClosedLoop:
 
     def wait_recorder_matched(self, topics: Sequence[str], timeout: float = 20.0) -> None:
         """Wait until the recorder's subscription to each of ``topics`` is matched with a
-        publisher (its ``~/matched``). A subscription the graph shows is not yet one the
-        publisher sends to: under load the controller's ``~/state`` was matched 0.18 s into
-        a lockstep run, and its first 357 of 1001 states were missing from the bag."""
+        publisher (its ``~/matched``), then :data:`MATCH_MARGIN`. A subscription the graph
+        shows is not yet one the publisher sends to: under load the controller's ``~/state``
+        was matched 0.18 s into a lockstep run, and its first 357 of 1001 states were
+        missing from the bag. The recorder's side of a match comes first; the publisher's,
+        which nothing outside its process can see, follows."""
         deadline = time.monotonic() + timeout
         while True:
             response = self.probe.call_trigger("/recorder/matched", check=self.group.check_alive)
             matched = json.loads(response.message)
             unmatched = [t for t in topics if matched.get(t, 0) < 1]
             if not unmatched:
+                self.probe.spin_for(MATCH_MARGIN)
                 return
             if time.monotonic() > deadline:
                 raise TimeoutError(
@@ -235,10 +245,15 @@ class ClosedLoop:
                 for topic, n in expected.items()
                 if not (topic.endswith(TRUTH_TOPIC) and counts.get(topic, 0) == 0)
             )
-            if run != previous or not complete:
+            if run != previous:
                 previous, since = run, time.monotonic()
-            elif time.monotonic() - since >= RECORD_QUIET:
+            elif complete and time.monotonic() - since >= RECORD_QUIET:
                 return
+            elif not complete and time.monotonic() - since >= RECORD_GAVE_UP:
+                raise RuntimeError(
+                    f"the recorder missed messages of the run: recorded {counts}, at least "
+                    f"{expected} expected, and nothing more for {RECORD_GAVE_UP:g} s"
+                )
             if time.monotonic() > deadline:
                 raise RuntimeError(
                     f"the recorder did not take the run's tail within {timeout:g} s: "
