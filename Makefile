@@ -63,8 +63,8 @@ $(STAMP): setup.py setup.cfg
 	@touch $@
 
 # What PyPI cannot give: Xvfb, the X server the GUI test opens PyBullet's window on
-# (tests/integration/test_gui_view.py), and Chromium, the browser the dashboard's browser
-# test drives headless through playwright (tests/integration/browser.py: WebGL in software,
+# (test/integration/test_gui_view.py), and Chromium, the browser the dashboard's browser
+# test drives headless through playwright (test/integration/browser.py: WebGL in software,
 # with the SwiftShader that Debian's chromium package ships; DejaVu fonts for its text).
 # Each test is skipped without its program. SYSTEM_COMMANDS pairs each command with the
 # packages that bring it; those of every missing command are installed with apt-get (root,
@@ -114,10 +114,10 @@ browser-test: venv system-deps
 	$(PY) -m pytest -n 0 -m browser -s
 
 # Every executable started and stopped 20 times (SIGINT and SIGTERM) with its topics busy,
-# no traceback in any output (tests/stress, a few minutes; CI runs it after make test). A
+# no traceback in any output (test/stress, a few minutes; CI runs it after make test). A
 # crash in C code prints its Python stack (faulthandler).
 stress: venv
-	PYTHONFAULTHANDLER=1 $(PY) -m pytest -n 2 tests/stress
+	PYTHONFAULTHANDLER=1 $(PY) -m pytest -n 2 test/stress
 
 lint: venv
 	$(VENV)/bin/ruff check .

@@ -69,10 +69,10 @@ TEST_REQUIRES = [
     "mcap-ros2-support>=0.5,<1",
     "colcon-common-extensions>=0.3,<1",
     # Real robot descriptions nobody here wrote (UR, Panda, xArm, Kinova, Z1, SO-100/101),
-    # with meshes and package:// URIs: the corpus of tests/unit/test_corpus.py.
+    # with meshes and package:// URIs: the corpus of test/unit/test_corpus.py.
     "example-robot-data>=4.1,<7",
     # The dashboard's browser test drives Debian's Chromium headless (`make system-deps`)
-    # by executable_path=/usr/bin/chromium (tests/integration/browser.py): no browser is
+    # by executable_path=/usr/bin/chromium (test/integration/browser.py): no browser is
     # ever downloaded, never run `playwright install`.
     "playwright>=1.45,<2",
 ]
@@ -85,7 +85,7 @@ setup(
     maintainer="joint_space_control developers",
     maintainer_email="jsc@example.com",
     python_requires=">=3.10",
-    packages=find_packages(exclude=["tests", "tests.*"]),
+    packages=find_packages(exclude=["test", "test.*"]),
     package_data={
         PACKAGE_NAME: ["config/*.yaml", "config/experiments/*.yaml"],
         f"{PACKAGE_NAME}.robots": ["urdf/*.urdf"],

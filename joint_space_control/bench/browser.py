@@ -4,7 +4,7 @@ in a process of its own (``python -m joint_space_control.bench.browser <url>``).
 The browser is the system's (``make system-deps`` installs Debian's chromium), found on
 PATH and handed to playwright by executable path (playwright's own builds are never
 downloaded), with WebGL in software on the SwiftShader Debian's chromium ships, as
-tests/integration/browser.py launches it for the tests. Its own process keeps the page's
+test/integration/browser.py launches it for the tests. Its own process keeps the page's
 cost (playwright's driver, Chromium's processes) apart from the bench's and lets the bench
 spin rclpy meanwhile; the process prints one JSON line once the page is connected (or why
 it is not) and keeps the page open until its stdin closes.
@@ -23,7 +23,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 #: Chromium's switches: software WebGL on SwiftShader, no sandbox (why: the docstring of
-#: tests/integration/browser.py, which launches the tests' browser with these too).
+#: test/integration/browser.py, which launches the tests' browser with these too).
 CHROMIUM_ARGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox")
 #: The page is connected once this text is on it (the server's label) and a canvas exists.
 CONNECTED_TEXT = "joint_space_control"

@@ -30,7 +30,7 @@ class ParamSpec:
     From it follow the ROS descriptor (:func:`joint_space_control.ros.parameters.declare`:
     read-only, dynamic typing, the numeric range and the constraints text), the validation
     of every value (:meth:`check`, through :func:`value`) and the documented defaults
-    (tests/unit/test_parameter_docs.py).
+    (test/unit/test_parameter_docs.py).
 
     - numbers: ``minimum`` (with ``exclusive``: strictly above it), ``maximum`` (inclusive)
       and ``step`` (non-zero: the values lie on the grid minimum + k·step, to rclpy's

@@ -1,6 +1,6 @@
 """Experiments: the theory's questions asked of real runs, and the machinery that runs them.
 
-One layer of the package (tests/unit/test_layers.py), its modules grouped by job, each job a
+One layer of the package (test/unit/test_layers.py), its modules grouped by job, each job a
 subpackage: :mod:`~joint_space_control.experiments.harness` starts and drives node processes
 (the lockstep ``ClosedLoop``); :mod:`~joint_space_control.experiments.scenarios` reads the
 scenario files; :mod:`~joint_space_control.experiments.execution` turns a scenario's variants

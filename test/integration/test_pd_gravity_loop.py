@@ -2,8 +2,8 @@
 separate processes in lockstep, changed through the parameter services.
 
 The theory of the loop itself (THEORY.md §2: convergence, the pure-PD offset, identical
-runs) is checked on the in-process engine (tests/unit/test_inprocess.py), which records the
-same loop bit for bit (tests/integration/test_corpus_loops.py)."""
+runs) is checked on the in-process engine (test/unit/test_inprocess.py), which records the
+same loop bit for bit (test/integration/test_corpus_loops.py)."""
 
 from __future__ import annotations
 

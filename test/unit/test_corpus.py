@@ -1,9 +1,9 @@
-"""Robot descriptions as robot packages ship them (tests/corpus.py): each loads, its plant is
+"""Robot descriptions as robot packages ship them (test/corpus.py): each loads, its plant is
 its model, and what cannot work is refused in one line.
 
 Identity: PyBullet's inverse dynamics (``calculateInverseDynamics`` on the loaded plant)
 equals Pinocchio's rnea on the controller model, on random states inside the joint limits,
-to the per-robot tolerance of tests/corpus.py (rounding, ~1e-11 N·m, where the description
+to the per-robot tolerance of test/corpus.py (rounding, ~1e-11 N·m, where the description
 is physical).
 """
 
@@ -23,7 +23,7 @@ from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot, urdf_facts
 from sim_bridge.plant import Plant
-from tests.corpus import BY_NAME, CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS, floating_g1
+from test.corpus import BY_NAME, CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS, floating_g1
 
 TWO_LINK = """<?xml version="1.0"?>
 <robot name="two_link">

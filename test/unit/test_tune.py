@@ -31,7 +31,7 @@ from joint_space_control.tuning.study import (
     open_study,
     run_trials,
 )
-from tests.unit.tuning_fakes import (
+from test.unit.tuning_fakes import (
     FakeResult,
     FakeRunner,
     ReorderingRunner,

@@ -1,5 +1,5 @@
 """The robots, gains and set-points the closed-loop tests share (node processes in
-tests/integration, the in-process engine in tests/unit)."""
+test/integration, the in-process engine in test/unit)."""
 
 #: Gains that are well damped and stable at 1 kHz for each robot (K_D T_s ≪ B_ii).
 GAINS = {

@@ -40,7 +40,7 @@ from joint_space_control.analysis.run_metrics import (
 from joint_space_control.cli.analyze import ProgressBar
 from joint_space_control.cli.main import main
 from joint_space_control.json_values import jsonable
-from tests.unit.bagfactory import (
+from test.unit.bagfactory import (
     JOINT_STATE_TYPE,
     STATE_TYPE,
     TYPESTORE,

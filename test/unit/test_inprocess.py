@@ -2,7 +2,7 @@
 plant, controller objects and sub-step loop as the nodes' lockstep, without processes.
 
 These were integration tests of node processes; the ROS engine gives the same numbers bit
-for bit (tests/integration/test_experiments.py compares every scenario on both engines), so
+for bit (test/integration/test_experiments.py compares every scenario on both engines), so
 the theory is checked here, fast, and the node processes are tested for what needs them.
 Tolerances as before: a set-point to 1e-3 rad; the pure-PD equilibrium residual
 g(q_e) − K_P(q_d − q_e) to 1e-3 N·m; second-order overshoot to 1 point and 2 % settling to
@@ -28,9 +28,9 @@ from joint_space_control.experiments.execution.inprocess import EngineError, InP
 from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from tests.corpus import BY_NAME, PACKAGE_PATHS
-from tests.loops import GAINS, ID_CASES, SETPOINTS
-from tests.unit.test_corpus import step_inside_limits
+from test.corpus import BY_NAME, PACKAGE_PATHS
+from test.loops import GAINS, ID_CASES, SETPOINTS
+from test.unit.test_corpus import step_inside_limits
 
 T_S = 1e-3  # control period [s]
 CONTROLLER = "inverse_dynamics_controller"
@@ -260,7 +260,7 @@ def test_a_non_finite_torque_ends_the_run_with_the_reason(make_loop):
         loop.run_until(0.2)
 
 
-# -- robots nobody here wrote (tests/corpus.py) --------------------------------------------
+# -- robots nobody here wrote (test/corpus.py) --------------------------------------------
 def corpus_loop(make_loop, name: str, controller: str, params: dict[str, Any]):
     robot = BY_NAME[name]
     model = RobotModel(resolve_robot(urdf_path=str(robot.path), package_paths=PACKAGE_PATHS))

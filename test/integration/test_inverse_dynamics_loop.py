@@ -2,7 +2,7 @@
 gains and the model through the parameter services.
 
 Nominal second-order behaviour, decoupling, model mismatch and saturation (THEORY.md §3,
-experiments 6–8) are checked on the in-process engine (tests/unit/test_inprocess.py)."""
+experiments 6–8) are checked on the in-process engine (test/unit/test_inprocess.py)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import resolve_robot
-from tests.loops import ID_CASES as CASES
+from test.loops import ID_CASES as CASES
 
 from .conftest import JOINTS
 

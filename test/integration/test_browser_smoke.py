@@ -1,5 +1,5 @@
 """The browser the dashboard's test uses renders: system Chromium, headless, through
-playwright (tests/integration/browser.py), with WebGL on software (SwiftShader).
+playwright (test/integration/browser.py), with WebGL on software (SwiftShader).
 
 A local page (a data: URL, no server, no network) clears a WebGL canvas to a colour and
 reads the pixel back, for WebGL 1 and 2 (three.js, viser's renderer, asks for 2), and draws

@@ -42,7 +42,7 @@ def _release_domains() -> Iterator[None]:
         _leases.pop().release()
 
 
-from tests.loops import GAINS, JOINTS, SETPOINTS  # noqa: E402, F401  (shared)
+from test.loops import GAINS, JOINTS, SETPOINTS  # noqa: E402, F401  (shared)
 
 
 @pytest.fixture

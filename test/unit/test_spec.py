@@ -16,7 +16,7 @@ from joint_space_control.analysis.spec import (
 )
 from joint_space_control.experiments.judging.outcome import RunView
 from joint_space_control.experiments.judging.theory import evaluate
-from tests.unit.tuning_fakes import controller_metrics
+from test.unit.tuning_fakes import controller_metrics
 
 
 def test_parse_spec_reads_every_clause_in_order():

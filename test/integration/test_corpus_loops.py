@@ -1,12 +1,12 @@
 """The ROS engine and the in-process engine are the same loop, bit for bit: one test per law,
-on robot descriptions nobody here wrote (tests/corpus.py).
+on robot descriptions nobody here wrote (test/corpus.py).
 
 The node processes (sim_bridge in lockstep, the controller, the recorder) and the in-process
 engine (:mod:`joint_space_control.experiments.execution.inprocess`: the same plant, controller
 objects and sub-step loop, no ROS graph) run the same step of a corpus robot from the
 controllers' parameters; every recorded ``~/state`` row (q_d … τ, the joint state answered) is
 equal to the last bit, and so are the metrics of the analysis. The theory itself is checked on
-the in-process engine (tests/unit/test_inprocess.py).
+the in-process engine (test/unit/test_inprocess.py).
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from joint_space_control.experiments.harness.loop import ClosedLoop
 from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from tests.corpus import BY_NAME, PACKAGE_PATHS
-from tests.unit.test_corpus import step_inside_limits
+from test.corpus import BY_NAME, PACKAGE_PATHS
+from test.unit.test_corpus import step_inside_limits
 
 from .conftest import next_domain_id
 

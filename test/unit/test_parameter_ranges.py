@@ -21,7 +21,7 @@ from joint_space_control.experiments.scenarios import format as scenarios
 from joint_space_control.nodes.pd_gravity_controller import PDGravityControllerNode
 from joint_space_control.ros.parameters import ParamSpec, declare, descriptor_range
 from sim_bridge.parameters import prefixed
-from tests.unit.test_parameter_docs import CONFIG, NODES, WORLDS, flat
+from test.unit.test_parameter_docs import CONFIG, NODES, WORLDS, flat
 
 ZETA = ParamSpec("zeta", 1.0, "damping ratio", dynamic=True, minimum=0.0, maximum=10.0)
 RATE = ParamSpec("rate", 1000.0, "rate", unit="Hz", minimum=0.0, exclusive=True, maximum=1e5)
