@@ -116,6 +116,14 @@ def test_sigterm_mid_run_leaves_a_complete_readable_bag(make_loop, tmp_path):
     loop.run_until(0.8)
     recorder = loop.group.nodes["recorder"]
     t_stop = loop.probe.latest_time()
+    # the recorder has taken the states up to there (a loaded machine delays it: seen 0.35 s
+    # of simulated time behind a lockstep loop); the loop runs on meanwhile
+    seen = len(set(loop.probe.recording.stamps))
+    loop.probe.spin_until(
+        lambda: loop.recorded_counts().get("/joint_states", 0) >= seen,
+        30.0,
+        f"the recorder to hold the {seen} states up to t = {t_stop:.3f} s",
+    )
     recorder.signal(signal.SIGTERM)
     assert recorder.proc.wait(timeout=15) == 0
     log = recorder.log()
