@@ -18,8 +18,10 @@ an older playwright nor a GPU on the machine changes what the tests render with.
 from __future__ import annotations
 
 import shutil
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -40,27 +42,41 @@ def chromium_path() -> str:
     return path
 
 
-def launch_chromium(playwright: Playwright, **options: Any) -> Browser:
+def launch_chromium(
+    playwright: Playwright, executable: str | None = None, **options: Any
+) -> Browser:
     """A headless system Chromium launched by ``playwright`` (``sync_playwright()``'s
-    object) with software WebGL; ``options`` go to ``chromium.launch`` (``args`` are added
-    after :data:`CHROMIUM_ARGS`). Skips the test when chromium is missing."""
+    object) with software WebGL; ``executable``: what starts it (default: chromium itself);
+    ``options`` go to ``chromium.launch`` (``args`` are added after
+    :data:`CHROMIUM_ARGS`). Skips the test when chromium is missing."""
     args = [*CHROMIUM_ARGS, *options.pop("args", ())]
     return playwright.chromium.launch(
-        executable_path=chromium_path(), headless=True, args=args, **options
+        executable_path=executable or chromium_path(), headless=True, args=args, **options
     )
 
 
+def niced_chromium(folder: Path, nice: int) -> str:
+    """A script in ``folder`` that starts the system Chromium at niceness ``nice``: every
+    process of the browser inherits it (docs/dashboard.md: on the loop's machine, open the
+    page at the lowest priority, so that the loop and the dashboard come first)."""
+    script = folder / "chromium-niced"
+    script.write_text(f'#!/bin/sh\nexec nice -n {int(nice)} {chromium_path()} "$@"\n')
+    script.chmod(0o755)
+    return str(script)
+
+
 @contextmanager
-def chromium(**options: Any) -> Iterator[Browser]:
-    """Playwright started and the system Chromium launched (:func:`launch_chromium`), both
-    stopped on leaving, also on failure. Skips the test when playwright or chromium is
-    missing."""
+def chromium(nice: int = 0, **options: Any) -> Iterator[Browser]:
+    """Playwright started and the system Chromium launched (:func:`launch_chromium`) at
+    niceness ``nice``, both stopped on leaving, also on failure. Skips the test when
+    playwright or chromium is missing."""
     sync_api = pytest.importorskip(
         "playwright.sync_api", reason="playwright is not installed (the test extra has it)"
     )
     chromium_path()  # skip before starting playwright's driver
-    with sync_api.sync_playwright() as playwright:
-        browser = launch_chromium(playwright, **options)
+    with tempfile.TemporaryDirectory() as folder, sync_api.sync_playwright() as playwright:
+        executable = niced_chromium(Path(folder), nice) if nice else None
+        browser = launch_chromium(playwright, executable, **options)
         try:
             yield browser
         finally:
