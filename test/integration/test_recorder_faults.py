@@ -101,6 +101,7 @@ def test_sigkill_mid_run_loses_at_most_a_flush_period_and_recovers(tmp_path, sto
         params.update({"flush_period": FLUSH_PERIOD, "use_sim_time": True})
         recorder = run.group.start("recorder", params)
         run.probe.wait_for_subscriber("recorder", ["/joint_states"], check=run.group.check_alive)
+        run.wait_recorder_matched(["/joint_states"])  # else the 1 s may pass before it takes any
         run.start(JOINTS[ROBOT], [SETPOINTS[ROBOT]])
         run.hold_at(1.0)  # everything up to 1 s goes into the bag, then the loop goes on
         wait_until_on_disk(bag, 1.0, tmp_path / "probe_recovery")
@@ -191,6 +192,7 @@ def test_a_write_error_mid_run_stops_the_recorder_with_one_error_line(tmp_path):
         )
         try:
             run.probe.wait_for_subscriber("recorder", TOPICS, check=run.group.check_alive)
+            run.wait_recorder_matched(TOPICS)
             run.start(JOINTS[ROBOT], [SETPOINTS[ROBOT]])
             returncode = recorder.wait(timeout=120)
         finally:
