@@ -130,10 +130,7 @@ class ClosedLoop:
                         "reference",
                         f"{r.controller}/state",
                     )
-                self.probe.wait_for_subscriber(
-                    "recorder", run_topics, check=self.group.check_alive
-                )
-                self.wait_recorder_matched(run_topics)
+                self.wait_recorder_matched(run_topics)  # subscribed, and matched
         except BaseException:
             self.close()
             raise
