@@ -82,6 +82,49 @@ def _since(mark: Mapping[str, Any] | None, status: dict[str, Any]) -> dict[str, 
     return out
 
 
+#: What the loop as users run it adds to the bench's: the controller and the recorder on
+#: simulated time (the README's first example sets ``use_sim_time:=true``).
+AS_USERS_RUN_IT = {"use_sim_time": True}
+#: The loop's topics the recorder must be matched with before the measurement starts.
+RECORDED = ("/clock", "/joint_states", "/effort_command")
+
+
+class Recording:
+    """A :data:`Beside`: the recorder (default topics, ``use_sim_time``) in the run's
+    domain, started while the loop is paused and ready once its subscriptions to
+    :data:`RECORDED` are matched; stopped (its bag closed) when left."""
+
+    def __init__(self, group: ProcessGroup, domain_id: int, output: Path) -> None:
+        self.group, self.domain_id, self.output = group, domain_id, output
+
+    def __enter__(self) -> Recording:
+        self.node = self.group.start("recorder", {**AS_USERS_RUN_IT, "output": str(self.output)})
+        client = RosClient(self.domain_id, f"jsc_bench_recording_{self.domain_id}")
+        try:
+            deadline = time.monotonic() + 30.0
+            while True:
+                answer = client.call_trigger("/recorder/matched", check=self.group.check_alive)
+                matched = json.loads(answer.message)
+                if all(matched.get(t, 0) >= 1 for t in RECORDED):
+                    break
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f"the bench's recorder matched only {matched}")
+                client.spin_for(0.1, self.group.check_alive)
+        finally:
+            client.close()
+        return self
+
+    def ready(self, check: Callable[[], None]) -> None:
+        check()
+
+    def start(self) -> None:
+        pass
+
+    def __exit__(self, *exc: object) -> None:
+        self.node.stop()
+        del self.group.nodes[self.node.name]
+
+
 def joints_of(robot: str) -> tuple[str, ...]:
     return RobotModel(resolve_robot(robot, "")).joint_names
 
@@ -151,12 +194,14 @@ def lockstep(
     log: Callable[[str], None],
     controller_params: Mapping[str, Any] | None = None,
     beside: Beside | None = None,
+    recorded: bool = False,
 ) -> list[dict[str, Any]]:
     """Lockstep throughput of sim_bridge + each law's controller (two processes) on
     ``robot``: ``seconds`` of wall time from the first tick, measured by the controller.
     ``controller_params``: added to each controller's (``use_sim_time``); ``beside``: what
     runs beside the loop during each measurement (:data:`Beside`; the figures are then
-    counted from its mark: the rate, ticks and seconds, not the percentiles)."""
+    counted from its mark: the rate, ticks and seconds, not the percentiles);
+    ``recorded``: a :class:`Recording` beside it instead (one bag per law)."""
     joints = joints_of(robot)
     results = []
     with lease_domain() as lease, ProcessGroup(workdir, lease.domain_id) as group:
@@ -180,7 +225,11 @@ def lockstep(
                 )
                 observer.wait_for_loop(group.check_alive)
                 observer.send_setpoint(joints, STEP)
-                with _beside(beside, group) as side:
+                side_of = beside
+                if recorded:
+                    bag = group.workdir / f"bag_{law}"
+                    side_of = lambda group, bag=bag: Recording(group, lease.domain_id, bag)  # noqa: E731
+                with _beside(side_of, group) as side:
                     observer.trigger("/sim_bridge/resume", group.check_alive)
                     mark = _mark(observer, side, controller, group.check_alive)
                     since = float(mark["total.seconds"]) if mark else 0.0

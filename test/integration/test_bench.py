@@ -14,7 +14,8 @@ from joint_space_control.bench.run import ROBOTS, SECTIONS
 
 # realtime: run alone after the parallel part, since its CPU hogs would load the machine
 # under another worker's test
-pytestmark = [pytest.mark.integration, pytest.mark.realtime]
+# Each a whole bench of a minute or more: make test-long (the sections' maths: test/unit).
+pytestmark = [pytest.mark.integration, pytest.mark.realtime, pytest.mark.long]
 
 LAWS = ("pd_gravity", "inverse_dynamics")
 
@@ -61,7 +62,14 @@ def test_quick_bench_writes_every_section(tmp_path):
     for row in data["lockstep"]:
         assert row["steps"] > 0 and row["steps_per_s"] > 0
         assert {"p50_us", "p99_us", "max_us"} <= set(row["callback"]) & set(row["latency"])
+    # the same loop as users run it: use_sim_time and a recorder, whose bag holds the run
+    assert {(r["robot"], r["law"]) for r in data["lockstep_as_used"]} == pairs
+    assert all(r["steps"] > 0 and r["steps_per_s"] > 0 for r in data["lockstep_as_used"])
+    bags = list((out / "runs").glob("lockstep_as_used_*/bag_*/metadata.yaml"))
+    assert len(bags) == len(pairs), bags
     assert {(r["robot"], r["law"]) for r in data["ratios"]} == pairs
+    assert all(r["as_used_over_pingpong"] > 0 for r in data["ratios"])
+    assert "as users run it" in result.stdout
     cases = {(r["load"], r["thread_priority"]) for r in data["realtime"]}
     assert cases == {("quiet", 0), ("quiet", 50), ("hog", 0), ("hog", 50)}
     for realtime in data["realtime"]:
@@ -77,7 +85,7 @@ def test_quick_bench_writes_every_section(tmp_path):
     for floor in data["realtime_floor"]:
         assert {"lateness", "on_time_fraction", "policy"} <= set(floor)
     assert data["analyze"]["messages"] > 0 and data["analyze"]["seconds_per_million_messages"]
-    assert len(data["goals"]) == 11
+    assert len(data["goals"]) == 12
     under_hog = [g for g in data["goals"] if "CPU hog" in g["goal"]]
     # the dashboard's section has a test of its own; --quick skips the sweep
     apart = [g for g in data["goals"] if g["goal"].startswith(("dashboard", "sweep"))]

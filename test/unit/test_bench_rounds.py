@@ -24,14 +24,21 @@ def test_loop_over_pingpong_is_the_median_of_ratios_of_the_same_round():
         {"robot": "iiwa", "law": "inverse_dynamics", "steps_per_s": v, "round": k}
         for k, v in enumerate([1100, 550, 1100])
     ]
+    # as users run it (use_sim_time, a recorder): paired with the same rounds' ping-pong
+    as_used = [
+        {"robot": "iiwa", "law": "inverse_dynamics", "steps_per_s": v, "round": k}
+        for k, v in enumerate([800, 450, 900])
+    ]
     result = {
         "lockstep": [median_row(loops, "steps_per_s")],
         "pingpong": [median_row(pp, "round_trips_per_s")],
-        "rounds": {"pingpong": pp, "lockstep": loops},
+        "rounds": {"pingpong": pp, "lockstep": loops, "lockstep_as_used": as_used},
     }
     (ratio,) = ratios(result)
     assert math.isclose(ratio["loop_over_pingpong"], 1.1)
     assert [round(x, 12) for x in ratio["loop_over_pingpong_rounds"]] == [1.1, 1.1, 1.1]
+    assert [round(x, 12) for x in ratio["as_used_over_pingpong_rounds"]] == [0.8, 0.9, 0.9]
+    assert math.isclose(ratio["as_used_over_pingpong"], 0.9)
     assert math.isnan(ratio["loop_over_in_process"])  # no in-process section
 
 
