@@ -195,6 +195,7 @@ def stopped_time(rig: Rig, timeout: float = 30.0) -> float:  # noqa: F811
     raise AssertionError(f"simulated time still advancing after {timeout:g} s: {last:.3f} s")
 
 
+@pytest.mark.long  # two and a half minutes of a realtime loop beside the page: make test-long
 def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tmp_path):  # noqa: F811
     port = free_port()
     url = f"http://127.0.0.1:{port}"

@@ -358,13 +358,23 @@ def same(a: Any, b: Any) -> bool:
 
 
 @pytest.mark.timeout(900)
-def test_the_same_sweep_is_bit_identical_on_threads_and_on_a_local_cluster(tmp_path, marker):
+@pytest.mark.parametrize(
+    "engine",
+    [
+        "inprocess",
+        # 18 runs of three nodes each: two minutes, so in make test-long (see docs/testing.md)
+        pytest.param("ros", marks=pytest.mark.long),
+    ],
+)
+def test_the_same_sweep_is_bit_identical_on_threads_and_on_a_local_cluster(
+    tmp_path, marker, engine
+):
     scenario = scenarios.load(str(grid_file(tmp_path)))
     assert [label for label, _ in scenario.runs()] == grid_labels()
     quiet = lambda _: None  # noqa: E731
-    threads = run_experiment(scenario, tmp_path / "threads", pool=None, log=quiet)
+    threads = run_experiment(scenario, tmp_path / "threads", pool=None, log=quiet, engine=engine)
     with RunPool(2, None, quiet) as pool:
-        dask = run_experiment(scenario, tmp_path / "dask", pool=pool, log=quiet)
+        dask = run_experiment(scenario, tmp_path / "dask", pool=pool, log=quiet, engine=engine)
     # the grid's heat maps, drawn here from what the workers wrote
     assert (dask.out / "sweep.png").is_file() and (threads.out / "sweep.png").is_file()
     on_threads, on_dask = threads.runs, dask.runs
@@ -490,6 +500,7 @@ def test_ctrl_c_of_jsc_experiment_on_a_local_cluster_leaves_nothing(tmp_path, ma
     assert left == [], f"processes left: {left}"
 
 
+@pytest.mark.long  # a bench, of ROS runs: make test-long
 @pytest.mark.timeout(600)
 def test_bench_sweep_section_times_one_sweep_on_one_and_two_workers(tmp_path, marker):
     """``jsc bench`` section ``sweep``, tiny: both cluster sizes measured, every phase of a

@@ -61,7 +61,12 @@ def test_two_robots_in_one_world_are_each_analysed_and_checked(tmp_path):
     the checks per robot (the iiwa's PD + g at its set-point, the arm's inverse dynamics the
     second order of its gains), both on the results page."""
     docs = tmp_path / "docs"
-    result = jsc("two_robots", "--out", str(tmp_path), "--report", str(docs), timeout=300)
+    # in process (a world of two robots over ROS: test_two_robots.py, and make test-long
+    # runs this scenario on both engines)
+    result = jsc(
+        "two_robots", "--out", str(tmp_path), "--report", str(docs),
+        "--engine", "inprocess", "--scheduler", "threads", "--jobs", "1", timeout=300,
+    )  # fmt: skip
     assert result.returncode == 0, result.stdout + result.stderr
     out = tmp_path / "two_robots"
     verdict = json.loads((out / "result.json").read_text())
@@ -110,6 +115,7 @@ def _chunks(parts: int = 3) -> list[list[str]]:
     return [names[k::parts] for k in range(parts)]
 
 
+@pytest.mark.long  # seven minutes of a worker: make test-long
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("names", _chunks(), ids=lambda names: f"{names[0]}..")
 def test_every_scenario_runs_in_its_short_form_and_both_engines_agree(tmp_path, names):

@@ -53,6 +53,7 @@ def jsc(*args: str, timeout: float) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.long  # a whole tune and two ROS runs confirming it: make test-long
 @pytest.mark.timeout(400)
 def test_tune_meets_the_spec_and_a_fresh_experiment_confirms_the_gains(tmp_path):
     out = tmp_path / "tune"
