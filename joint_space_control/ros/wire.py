@@ -196,6 +196,12 @@ class JointStateImage:
         return sec * 1_000_000_000 + nsec
 
 
+def clock_bytes(ns: int) -> bytes:
+    """The serialized ``rosgraph_msgs/Clock`` at ``ns`` (its content ends where the bytes do,
+    as rclpy serializes it)."""
+    return CDR_LE + _STAMP.pack(*divmod(ns, 1_000_000_000))
+
+
 class Float64ArrayImage:
     """A Float64MultiArray with a fixed layout (dimensions, data size); ``data`` is a
     writable float64 view into the image."""

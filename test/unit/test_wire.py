@@ -16,7 +16,12 @@ from joint_space_control.ros.messages import (
     joint_state_arrays,
     state_message,
 )
-from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, JointStateReader
+from joint_space_control.ros.wire import (
+    Float64ArrayImage,
+    JointStateImage,
+    JointStateReader,
+    clock_bytes,
+)
 
 NAME_SETS = [
     ["j"],
@@ -169,3 +174,14 @@ class TestReader:
         np.testing.assert_array_equal(tau, np.array(msg.effort)[[1, 0, 2]])
         with pytest.raises(ValueError, match="unknown joints"):
             reader.read(serialize_message(message(["j1", "j2", "j3", "x"], (0, 0, 4))))
+
+
+@pytest.mark.parametrize("ns", [0, 1, 999_999_999, 1_000_000_000, 12_345_678_901_234])
+def test_clock_bytes_are_what_rclpy_serializes(ns):
+    from rosgraph_msgs.msg import Clock
+
+    msg = Clock()
+    msg.clock.sec, msg.clock.nanosec = divmod(ns, 1_000_000_000)
+    assert clock_bytes(ns) == serialize_message(msg)
+    back = deserialize_message(clock_bytes(ns), Clock)
+    assert back.clock.sec * 1_000_000_000 + back.clock.nanosec == ns

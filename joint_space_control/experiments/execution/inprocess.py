@@ -38,7 +38,6 @@ from typing import Any
 
 import numpy as np
 from rclpy.serialization import serialize_message
-from rosgraph_msgs.msg import Clock
 
 from joint_space_control.control import parameters as params
 from joint_space_control.control.configure import (
@@ -58,7 +57,12 @@ from joint_space_control.ros.messages import (
     state_message,
     trajectory_from_bytes,
 )
-from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, fill_images
+from joint_space_control.ros.wire import (
+    Float64ArrayImage,
+    JointStateImage,
+    clock_bytes,
+    fill_images,
+)
 from sim_bridge.parameters import (
     PARAMETERS as PLANT_PARAMETERS,
 )
@@ -96,11 +100,12 @@ class Recording:
     def topic(self, name: str, msgtype: str) -> Any:
         return self.bag.add_topic(name, msgtype) if self.bag is not None else None
 
-    def write(self, topic: Any, t_ns: int, raw: bytes) -> None:
-        """``raw`` at ``t_ns`` (or just after the message before it)."""
+    def write(self, topic: Any, t_ns: int, raw: bytes, exact: bool = False) -> None:
+        """``raw`` at ``t_ns`` (or just after the message before it); ``exact``: the bytes
+        of a wire image (:meth:`BagWriter.write`)."""
         self.ns = max(self.ns + 1, t_ns)
         if self.bag is not None:
-            self.bag.write(topic, self.ns, raw)
+            self.bag.write(topic, self.ns, raw, exact)
 
 
 class InProcessController:
@@ -188,9 +193,9 @@ class InProcessController:
         else:
             self.command.set_stamp(stamp_ns)
         if self._rec.on:
-            self._rec.write(self._command_topic, stamp_ns, self.command.to_bytes())
+            self._rec.write(self._command_topic, stamp_ns, self.command.to_bytes(), exact=True)
             if step is not held:
-                self._rec.write(self._state_topic, stamp_ns, self.state.to_bytes())
+                self._rec.write(self._state_topic, stamp_ns, self.state.to_bytes(), exact=True)
         self._answered_ns = stamp_ns
         self._tau = self.command.effort.copy()
         if designing:
@@ -274,7 +279,6 @@ class InProcessLoop:
                 self.bag = BagWriter(record, "mcap", flush_period=0.0)
             self._rec = rec = Recording(self.bag)
             self._clock_topic = rec.topic("/clock", "rosgraph_msgs/msg/Clock")
-            self._clock_msg = Clock()
             self.controllers = [InProcessController(s, rec) for s in self.setups]
             self._images, self._truths = [], []
             for setup, robot in zip(self.setups, self.robots, strict=True):
@@ -330,9 +334,7 @@ class InProcessLoop:
         controller's answer to it."""
         t_ns, rec = self.t_ns, self._rec
         if rec.on:
-            clock = self._clock_msg.clock
-            clock.sec, clock.nanosec = divmod(t_ns, 1_000_000_000)
-            rec.write(self._clock_topic, t_ns, serialize_message(self._clock_msg))
+            rec.write(self._clock_topic, t_ns, clock_bytes(t_ns), exact=True)
         for setup, robot, (image, topic), truth in zip(
             self.setups, self.robots, self._images, self._truths, strict=True
         ):
@@ -344,9 +346,9 @@ class InProcessLoop:
                 true_image.velocity[:] = robot.true_velocity
                 true_image.effort[:] = image.effort
                 true_image.set_stamp(t_ns)
-                rec.write(true_topic, t_ns, true_image.to_bytes())
+                rec.write(true_topic, t_ns, true_image.to_bytes(), exact=True)
             if rec.on:
-                rec.write(topic, t_ns, image.to_bytes())
+                rec.write(topic, t_ns, image.to_bytes(), exact=True)
             self.states[setup.name].append(
                 (t_ns, image.position.copy(), image.velocity.copy(), image.effort.copy())
             )
