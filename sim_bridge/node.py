@@ -81,6 +81,7 @@ from joint_space_control.ros.loop_statistics import LoopStatistics
 from joint_space_control.ros.messages import COMMAND_QOS, CONTROL_PUBLISHER_QOS
 from joint_space_control.ros.node_main import run_node
 from joint_space_control.ros.realtime_threads import RealtimeThreads
+from joint_space_control.ros.wire import clock_bytes
 from joint_space_control.throttle import ThrottledLog
 from sim_bridge import pacing
 from sim_bridge.ownership import ARRAY_COMMANDER
@@ -192,7 +193,6 @@ class SimBridge(Node):
         self._polled_ns = 0  # realtime: time the physics thread spent polling the clock
         self._polled_said = 0
         self._tick_sim_ns = self.period_ns if self.mode == "lockstep" else self.physics_dt_ns
-        self._clock_msg = Clock()
         self._clock_pub = self.create_publisher(Clock, "/clock", CONTROL_PUBLISHER_QOS)
         self.control_path = ControlPath(self)
         # realtime: the physics thread and the command path are on time first (lockstep has
@@ -340,9 +340,7 @@ class SimBridge(Node):
     def _publish_state(self) -> None:
         """Publish /clock and every robot's joint state at the current time (lock held)."""
         if self._clock_pub.get_subscription_count():  # volatile: nobody listening, no loss
-            clock = self._clock_msg.clock
-            clock.sec, clock.nanosec = divmod(self._t_ns, 1_000_000_000)
-            self._clock_pub.publish(self._clock_msg)
+            self._clock_pub.publish(clock_bytes(self._t_ns))  # before the states, every step
         if self.mode == "lockstep":
             self._sent_wall = time.monotonic()
             if self._awaiting != self._t_ns:  # a new state (not sent again)

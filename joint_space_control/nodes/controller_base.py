@@ -231,8 +231,9 @@ class JointController(Node):
         self._nominal_ns = round(1e9 / rate) if self.trigger == "timer" else -1
         self._timer = None
         self.loop_stats = LoopStatistics()
-        # every backward jump of the node clock (/clock with use_sim_time), in the executor
-        # thread that takes /clock; kept: the callback lives as long as its handle
+        # every backward jump of the node clock (/clock with use_sim_time), in the thread
+        # that takes /clock (the control path's); kept: the callback lives as long as its
+        # handle
         self._clock_jump_handle = self.get_clock().create_jump_callback(
             JumpThreshold(
                 min_forward=None, min_backward=Duration(nanoseconds=-1), on_clock_change=False
@@ -250,9 +251,11 @@ class JointController(Node):
         self.realtime = RealtimeThreads(self, values)
         self.control_path.on_serve = lambda: self.realtime.configure("control path")
         if not self.get_parameter("use_sim_time").value:
-            # with use_sim_time the executor serves /clock at the plant's rate: at FIFO it
-            # would starve the DDS threads that deliver the joint states (measured: states
-            # missing for 0.1 s at a time with two such controllers on two cores)
+            # with use_sim_time the executor stays at normal scheduling: when it served
+            # /clock at the plant's rate, at FIFO it starved the DDS threads that deliver
+            # the joint states (measured: states missing for 0.1 s at a time with two such
+            # controllers on two cores); the control path takes /clock now, but a FIFO
+            # executor beside it has not been measured again
             self.control_path.on_executor = self.realtime.configure_executor
         # The reference subscription comes first, so that a reference and a joint state
         # that are both waiting are handled in that order (deterministic lockstep start).
@@ -264,6 +267,7 @@ class JointController(Node):
         ).topic_name
         if self.trigger_parameter != "state":
             self._timer = self.control_path.timer(1.0 / rate, self._on_timer)
+        self.control_path.take_clock()  # after the states: a tick is not delayed by it
         self._diagnostics = LoopDiagnostics(
             self, self.loop_stats, spec.name, self._diagnostic_values, self._alarm
         )
@@ -539,9 +543,9 @@ class JointController(Node):
         )
 
     def _on_clock_jump(self, jump: TimeJump) -> None:
-        """The node clock went backwards (executor thread): counted; said once when it
-        keeps doing so. Nothing restarts: a restarted simulator is seen in the joint states'
-        stamps (rcl's timer restarts its period by itself)."""
+        """The node clock went backwards (in the control path, which takes /clock): counted;
+        said once when it keeps doing so. Nothing restarts: a restarted simulator is seen in
+        the joint states' stamps (rcl's timer restarts its period by itself)."""
         self.counts["clock.backward_jumps"] += 1
         if self._clock_jumps.jumped():
             self._say_once("clock", CLOCK_JUMPS)

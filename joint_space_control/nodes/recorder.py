@@ -182,6 +182,7 @@ class Recorder(Node):
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._log = ThrottledLog(self.get_logger())  # one line a second per kind
         self.control_path = ControlPath(self)
+        self.control_path.take_clock()  # the receive stamps' time, at the plant's rate
         try:
             self._discover()
             self.create_timer(period, self._discover, clock=self._wall)

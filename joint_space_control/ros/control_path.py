@@ -13,9 +13,10 @@ So the few entities of the control path (subscriptions in a fixed priority order
 one timer) are served by :meth:`ControlPath.spin`: one rcl wait set that holds exactly them
 and the signal guard condition, built once and refilled in C at each wait, ready entities
 taken and called directly. Everything else of the node (parameter services, services, other
-timers, ``/clock`` with ``use_sim_time``, QoS events of the publishers) stays with a standard
-executor spun in a second thread; it sleeps in ``rcl_wait`` (the GIL released) until one of
-those rare events.
+timers, QoS events of the publishers) stays with a standard executor spun in a second
+thread; it sleeps in ``rcl_wait`` (the GIL released) until one of those rare events.
+``/clock`` with ``use_sim_time``, which comes at the plant's rate, is taken on the control
+path too (:meth:`ControlPath.take_clock`).
 The control-path entities belong to :class:`ControlPathGroup`, which the rclpy executors
 never execute.
 
@@ -145,6 +146,30 @@ class ControlPath:
         self._subscriptions = [*self._subscriptions, _Entry(sub, callback, drain)]
         self._changed()
         return sub
+
+    def take_clock(self) -> bool:
+        """With ``use_sim_time``: take ``/clock`` on the control path, not in the executor
+        thread. rclpy's time source subscribes to it in the node's default callback group,
+        so the standard executor woke for every message (~0.6 ms of Python each, at the
+        plant's rate, in a second thread that shares the GIL and the cores with the loop);
+        here the time source's own callback updates the node's clocks from this path's
+        wait set, and its subscription is destroyed. Turned off and on again at runtime,
+        ``use_sim_time`` makes rclpy subscribe again: both then set the same time. Returns
+        whether ``/clock`` is taken here (False without ``use_sim_time``)."""
+        source = getattr(self.node, "_time_source", None)
+        given = getattr(source, "_clock_sub", None)
+        if given is None:
+            return False
+        self.subscription(
+            given.msg_type,
+            given.topic_name,
+            lambda msg, _info: source.clock_callback(msg),
+            given.qos_profile,
+            drain=True,
+        )
+        source._clock_sub = None
+        self.node.destroy_subscription(given)
+        return True
 
     def destroy_subscription(self, sub: Subscription) -> None:
         """Remove a subscription of the control path and destroy it (rclpy defers that

@@ -121,3 +121,49 @@ def test_drain_hands_out_what_arrived_before_the_limit_then_returns(node):
     path.stop()
     path.drain(0.05, limit)
     assert got == [1, 2, 3]
+
+
+def test_clock_is_taken_on_the_control_path_with_use_sim_time():
+    """use_sim_time: /clock leaves the executor's callback group for the control path,
+    whose wait sets the node's time; without it there is nothing to take."""
+    from rclpy.parameter import Parameter
+    from rclpy.qos import qos_profile_sensor_data
+    from rosgraph_msgs.msg import Clock
+
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=next_domain_id())
+    try:
+        plain = rclpy.create_node("wall_time", context=context)
+        assert ControlPath(plain).take_clock() is False
+        node = rclpy.create_node(
+            "sim_time",
+            context=context,
+            parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, True)],
+        )
+        path = ControlPath(node)
+        clock_subs = lambda: [s for s in node.subscriptions if s.topic_name == "/clock"]  # noqa: E731
+        (given,) = clock_subs()
+        assert given.callback_group is node.default_callback_group
+        assert path.take_clock() is True
+        (taken,) = clock_subs()
+        assert taken is not given and taken.callback_group is path.group
+        assert path.take_clock() is False  # once
+
+        pub = plain.create_publisher(Clock, "/clock", qos_profile_sensor_data)
+        end = time.monotonic() + 10
+        while pub.get_subscription_count() < 1:
+            assert time.monotonic() < end, "/clock not matched"
+            time.sleep(0.01)
+        for sec in (7, 8):  # best effort, as rclpy's time source asks: sent until taken
+            msg = Clock()
+            msg.clock.sec, msg.clock.nanosec = sec, 250_000_000
+            end = time.monotonic() + 10
+            while node.get_clock().now().nanoseconds != sec * 10**9 + 250_000_000:
+                assert time.monotonic() < end, f"the node's time is not {sec}.25 s"
+                pub.publish(msg)
+                path.spin_once(0.05)
+        path.close()
+        node.destroy_node()
+        plain.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
