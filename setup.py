@@ -34,6 +34,10 @@ PYPI_REQUIRES = [
     "pin>=3,<5",
     "numpy>=1.26,<3",
     "pybullet>=3.2.5,<4",
+    # The second physics engine (sim_bridge/mujoco_plant.py): the engine and its bindings
+    # only, imported as `mujoco` (the `mujoco` package adds Studio, GLFW and PyOpenGL on top
+    # and satisfies this too). 4.x: MjData.M, damping as a vector, MjSpec throughout.
+    "mujoco-core>=4,<5",
     "rosbags>=0.10,<1",
     # `jsc recover`: reads a killed MCAP bag record by record (no summary needed)
     "mcap>=1.2,<2",
