@@ -100,12 +100,10 @@ from sim_bridge.wrench import WrenchSchedule, wrench_vector
 #: MuJoCo allows (0.9999) at every violation; with the time constant of 2 dt (its smallest
 #: stable one) a joint held by friction creeps at ~1e-6 rad/s instead of ~1e-2 by default.
 STIFF_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-#: MuJoCo's warnings that mean the simulation blew up (non-finite or > 1e10 values).
-BLOW_UP = {
-    mujoco.mjtWarning.mjWARN_BADQPOS: "position",
-    mujoco.mjtWarning.mjWARN_BADQVEL: "velocity",
-    mujoco.mjtWarning.mjWARN_BADQACC: "acceleration",
-}
+#: MuJoCo's warning of a blown-up simulation: an acceleration that is not finite or beyond
+#: 1e10. It always comes first (positions and velocities only go bad by integrating one), so
+#: it is the one checked after every step (the three checks would double the step's overhead).
+BAD_ACCELERATION = mujoco.mjtWarning.mjWARN_BADQACC
 
 
 class PlantFaultError(RuntimeError):
@@ -181,10 +179,10 @@ class MujocoPlant:
         self.data = mujoco.MjData(self.model)
         m = self.model
         ids = [m.joint(name).id for name in self.joint_names]
-        self._qadr = m.jnt_qposadr[ids].copy()
-        self._vadr = m.jnt_dofadr[ids].copy()
         #: joint index of each dof (all dofs are controlled joints: the others are welded)
-        self._joint_of_dof = np.argsort(self._vadr)
+        self._joint_of_dof = np.argsort(m.jnt_dofadr[ids])
+        self._qadr = index(m.jnt_qposadr[ids])
+        self._vadr = index(m.jnt_dofadr[ids])
         self.effort_limits = self._limits(mj_spec, effort_limits)
         self._lowest_effort = -self.effort_limits
         self._brake_force = np.where(
@@ -340,16 +338,15 @@ class MujocoPlant:
         """One physics step of this plant's model (the world steps every plant with it);
         PlantFaultError if MuJoCo found the state blown up."""
         mujoco.mj_step(self.model, self.data)
-        for kind, what in BLOW_UP.items():
-            stat = self.data.warning[kind]
-            if stat.number:
-                joint = self.joint_names[self._joint_of_dof[stat.lastinfo]]
-                raise PlantFaultError(
-                    f"the MuJoCo simulation of {self.spec.name} blew up in the step from t = "
-                    f"{self.data.time - self.dt:.6g} s (non-finite or huge {what} at joint "
-                    f"'{joint}'); "
-                    "it stays stopped until reset: lower the gains or raise physics_rate"
-                )
+        stat = self.data.warning[BAD_ACCELERATION]
+        if stat.number:
+            joint = self.joint_names[self._joint_of_dof[stat.lastinfo]]
+            raise PlantFaultError(
+                f"the MuJoCo simulation of {self.spec.name} blew up in the step from t = "
+                f"{self.data.time - self.dt:.6g} s (non-finite or huge acceleration at joint "
+                f"'{joint}'); it stays stopped until reset: lower the gains or raise "
+                "physics_rate"
+            )
 
     def step(self, tau: np.ndarray, substeps: int = 1, t: float = 0.0) -> None:
         """As :meth:`sim_bridge.plant.Plant.step`: tau held over ``substeps`` physics steps
@@ -422,6 +419,14 @@ class MujocoPlant:
 
 
 # -- the description, compiled -----------------------------------------------------------------
+def index(addresses: np.ndarray) -> slice | np.ndarray:
+    """``addresses`` as an index into MuJoCo's vectors: a slice when they are 0, 1, …, n − 1
+    (the common case, and ~0.7 µs less per access than an index array)."""
+    if np.array_equal(addresses, np.arange(addresses.size)):
+        return slice(None)
+    return addresses.copy()
+
+
 def compile_spec(
     spec: RobotSpec, joints: tuple[str, ...], locked: dict[str, float], dt: float
 ) -> mujoco.MjSpec:

@@ -72,8 +72,9 @@ def mujoco_dynamics(plant: MujocoPlant, q, dq, ddq) -> tuple[np.ndarray, ...]:
     """(B, bias, τ = ID(q, q̇, q̈)) of the plant's compiled model, in joint order, computed on
     data of their own (the plant's state is left alone)."""
     m, d = plant.model, mujoco.MjData(plant.model)
-    v = plant._vadr
-    d.qpos[plant._qadr], d.qvel[v] = q, dq
+    ids = [m.joint(name).id for name in plant.joint_names]
+    v = m.jnt_dofadr[ids]
+    d.qpos[m.jnt_qposadr[ids]], d.qvel[v] = q, dq
     mujoco.mj_forward(m, d)
     full = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, full)
@@ -256,6 +257,20 @@ def test_torque_is_clamped_and_held_over_the_substeps(make_plant, models):
     np.testing.assert_array_equal(saturated.q, stepped.q)
     np.testing.assert_array_equal(saturated.dq, stepped.dq)
     assert np.max(np.abs(stepped.q - [0.3, -0.2])) > 0
+
+
+def test_vectors_are_in_the_order_of_the_joints_given(make_plant):
+    """planar_2dof controlled as (joint2, joint1): the same motion, every vector reversed."""
+    ordered = make_plant(RobotModel(resolve_robot("planar_2dof")), initial_positions=[0.3, -0.2])
+    model = RobotModel(resolve_robot("planar_2dof"), ("joint2", "joint1"))
+    swapped = make_plant(model, initial_positions=[-0.2, 0.3])
+    np.testing.assert_array_equal(swapped.effort_limits, [1000.0, 2000.0])
+    ordered.step(np.array([300.0, -100.0]), 5)
+    swapped.step(np.array([-100.0, 300.0]), 5)
+    a, b = ordered.state(), swapped.state()
+    for x, y in ((a.q, b.q), (a.dq, b.dq), (a.effort, b.effort)):
+        np.testing.assert_array_equal(x[::-1], y)
+    assert np.max(np.abs(a.dq)) > 0
 
 
 # -- the closed loop against THEORY.md §2 -----------------------------------------------------
