@@ -98,7 +98,7 @@ from sim_bridge.wrench import WrenchSchedule, wrench_vector
 
 #: solimp of the joint limits, the Coulomb friction and the brakes: the stiffest impedance
 #: MuJoCo allows (0.9999) at every violation; with the time constant of 2 dt (its smallest
-#: stable one) a joint held by friction creeps at ~1e-6 rad/s instead of ~1e-2 by default.
+#: stable one) a joint held by friction creeps at 7e-7 rad/s, 8e-3 with MuJoCo's defaults.
 STIFF_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 #: MuJoCo's warning of a blown-up simulation: an acceleration that is not finite or beyond
 #: 1e10. It always comes first (positions and velocities only go bad by integrating one), so
@@ -197,7 +197,7 @@ class MujocoPlant:
         self.friction = np.zeros(self.n)
         self.set_friction(friction)
         self.coulomb = self.static = np.zeros(self.n)
-        self._coulomb_on = self._stiction = False
+        self._stiction = False
         self._held: tuple[int, np.ndarray, np.ndarray] | None = None  # (body, f, μ)
         self._schedule: tuple[int, WrenchSchedule] | None = None
         self.payload_mass = 0.0
@@ -240,7 +240,6 @@ class MujocoPlant:
         stiction the bound is F_s while |q̇| < STICTION_SPEED, F_c above it (re-chosen at
         every physics sub-step)."""
         self.coulomb, self.static = coulomb_bounds(coulomb, static, self.n)
-        self._coulomb_on = bool(np.any(self.static))
         self._stiction = bool(np.any(self.static != self.coulomb))
         self._friction_bounds(self.data.qvel[self._vadr])
 
