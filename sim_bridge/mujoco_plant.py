@@ -349,13 +349,13 @@ class MujocoPlant:
 
     def step(self, tau: np.ndarray, substeps: int = 1, t: float = 0.0) -> None:
         """As :meth:`sim_bridge.plant.Plant.step`: tau held over ``substeps`` physics steps
-        with the friction and wrench of each sub-step; steps this plant alone (in a shared
-        world, step every plant with the begin/apply/end methods and
-        :meth:`MujocoWorld.step`)."""
+        with the friction and wrench of each sub-step. Steps this plant's world, as on
+        PyBullet: in a shared world, step every plant together with the begin/apply/end
+        methods and :meth:`MujocoWorld.step`."""
         self.begin_torque(tau)
         for k in range(substeps):
             self.apply_torque(k, t)
-            self.advance()
+            self.world.step()
         self.end_torque()
 
     def begin_torque(self, tau: np.ndarray) -> None:
@@ -386,11 +386,12 @@ class MujocoPlant:
     def brake(self, substeps: int = 1, t: float = 0.0) -> None:
         """Safe fallback, as :meth:`sim_bridge.plant.Plant.brake`: dry friction up to the
         effort limit on every joint, so the arm stops and holds wherever it is (the wrench
-        still acts); afterwards the friction is the Coulomb friction again."""
+        still acts); afterwards the friction is the Coulomb friction again. Steps this
+        plant's world (see :meth:`step`)."""
         self.begin_brake()
         for k in range(substeps):
             self.apply_brake(k, t)
-            self.advance()
+            self.world.step()
         self.end_brake()
 
     def begin_brake(self) -> None:

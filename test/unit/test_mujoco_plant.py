@@ -24,8 +24,8 @@ from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import RobotSpec, resolve_robot
 from sim_bridge.mujoco_plant import MujocoPlant, MujocoWorld, PlantFaultError
 from sim_bridge.plant import STICTION_SPEED
-from sim_bridge.wrench import WrenchSchedule
 from test.corpus import BY_NAME, CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS
+from test.unit.test_plant_imperfections import run
 
 REL = 1e-12  # relative to the scale of the compared quantity
 FRICTION = 0.7  # [N·m·s/rad]
@@ -412,34 +412,24 @@ def test_wrench_is_jacobian_transpose_of_pinocchio(make_plant, models, robot, li
 
 
 # -- repeatable --------------------------------------------------------------------------------
-def imperfect_run(plant: MujocoPlant, model: RobotModel) -> np.ndarray:
-    """PD + g with every imperfection on and the brakes in the middle; the states, by row."""
-    plant.set_coulomb_friction(FC * 0.1, FS * 0.1)
-    plant.set_torque_rate_limit(5e4)
-    plant.set_wrench_schedule(
-        WrenchSchedule([0.0, 0.0, -50.0], [0.0] * 3, "sinusoid", frequency=3.0)
-    )
-    rows = []
-    for k in range(300):
-        s = plant.state()
-        if 100 <= k < 120:
-            plant.brake(2, k * 2e-3)
-        else:
-            tau = model.gravity(s.q) + 400.0 * (SETPOINTS["planar_2dof"] - s.q) - 60.0 * s.dq
-            plant.step(tau, 2, k * 2e-3)
-        rows.append(np.r_[s.q, s.dq, s.effort])
-    return np.array(rows)
-
-
 def test_the_same_run_twice_is_bit_identical(make_plant, models):
-    """After a reset, and on another plant whose world steps another robot too."""
+    """PD + g with every imperfection on and the brakes in the middle (test_plant_imperfections'
+    run): again after a reset, and on a twin whose world steps an iiwa beside it."""
     model = models["planar_2dof"]
-    plant = make_plant(model, initial_positions=Q0, friction=0.3, payload_mass=1.0)
-    first = imperfect_run(plant, model)
+
+    def imperfect(plant: MujocoPlant) -> MujocoPlant:
+        plant.set_coulomb_friction(FC * 0.1, FS * 0.1)
+        plant.set_torque_rate_limit(5e4)
+        plant.hold_wrench("", [0.0, 0.0, -50.0], [0.0, 5.0, 0.0])
+        return plant
+
+    plant = imperfect(make_plant(model, initial_positions=Q0, friction=0.3, payload_mass=1.0))
+    first = run(plant, model)
     assert np.max(np.abs(first[:, 2:4])) > 0.1  # it moved
     plant.reset()
-    np.testing.assert_array_equal(imperfect_run(plant, model), first)
+    np.testing.assert_array_equal(run(plant, model), first)
     world = MujocoWorld()
-    make_plant(models["iiwa"], world=world)
+    iiwa = make_plant(models["iiwa"], world=world)
     twin = make_plant(model, initial_positions=Q0, friction=0.3, payload_mass=1.0, world=world)
-    np.testing.assert_array_equal(imperfect_run(twin, model), first)
+    np.testing.assert_array_equal(run(imperfect(twin), model), first)
+    assert np.max(np.abs(iiwa.state().dq)) > 0.1  # the world stepped it too
