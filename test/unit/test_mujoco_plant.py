@@ -113,7 +113,8 @@ def test_mass_matrix_bias_and_inverse_dynamics_are_pinocchio(make_plant, name):
 
 def test_the_urdf_is_compiled_as_documented(make_plant):
     """iiwa: the URDF's damping 0.5 is zeroed; xarm7: link_eef has no <inertial> and stays
-    massless (MuJoCo would give it mass from its geometry); the options are the module's."""
+    massless, as in Pinocchio (no mass from geometry: none is compiled, and inertiafromgeom is
+    false); the options are the module's."""
     iiwa = make_plant(RobotModel(resolve_robot("iiwa")), physics_rate=500.0)
     m = iiwa.model
     assert "damping" in iiwa.spec.urdf_path.read_text()
