@@ -280,15 +280,18 @@ def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tm
         # pause stops simulated time, resume runs it again
         page.get_by_role("button", name="pause").click()
         paused_at = stopped_time(rig)
-        # the probe takes the states still on their way (a loaded machine queues them),
-        # then none comes for 1.5 s: its last is the plant's last (to the diagnostics' 4
-        # decimals of sim_time_s, and a state or a few that may not have gone out)
-        last, deadline = rig.probe.latest_time(), time.monotonic() + 30.0
-        while time.monotonic() < deadline:
-            rig.probe.spin_for(1.5)
-            if rig.probe.latest_time() == last:
-                break
-            last = rig.probe.latest_time()
+        # the probe takes the states still on their way up to the plant's last (to the
+        # diagnostics' 4 decimals of sim_time_s, and a state or a few that may not have
+        # gone out: a loaded machine queues them, and a probe starved of CPU beside the
+        # browser was once 8.5 s of states behind), then none later comes for 1.5 s
+        rig.probe.spin_until(
+            lambda: rig.probe.latest_time() >= paused_at - 0.0105,
+            60.0,
+            f"the probe to take the states up to the pause at {paused_at:.4f} s",
+            rig.group.check_alive,
+        )
+        rig.probe.spin_for(1.5)
+        last = rig.probe.latest_time()
         assert paused_at - 0.0105 <= last <= paused_at + 1e-9, (last, paused_at)
         page.get_by_role("button", name="resume").click()
         rig.probe.spin_until(
