@@ -65,7 +65,7 @@ point mass at the centre of mass of the last controlled joint's child link, the 
 
 Coulomb friction, stiction and the brakes are MuJoCo's dry friction (``frictionloss``), a
 constraint solved with the dynamics like Bullet's velocity motors: F_c (F_s while
-|q̇| < :data:`~sim_bridge.plant.STICTION_SPEED`), or the effort limit while braking. MuJoCo's
+|q̇| < :data:`~sim_bridge.torque_plant.STICTION_SPEED`), or the effort limit while braking. MuJoCo's
 constraints are soft: set as stiff as it allows (:data:`STIFF_SOLIMP`, time constant 2 dt), a
 joint held by friction still creeps, at 7e-7 rad/s on planar_2dof held 10 N·m below stiction
 (PyBullet: ~1e-13 rad in a second).
@@ -89,12 +89,10 @@ import mujoco
 import numpy as np
 from lxml import etree
 
-from joint_space_control.arrays import nonnegative, per_joint
-from joint_space_control.laws.limits import limit_rate, rate_steps
+from joint_space_control.arrays import per_joint
 from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
-from sim_bridge.plant import GRAVITY, LOCK_FORCE, STICTION_SPEED, PlantState, coulomb_bounds
-from sim_bridge.wrench import WrenchSchedule, wrench_vector
+from sim_bridge.torque_plant import GRAVITY, LOCK_FORCE, TorquePlant, TorqueWorld
 
 #: solimp of the joint limits, the Coulomb friction and the brakes: the stiffest impedance
 #: MuJoCo allows (0.9999) at every violation; with the time constant of 2 dt (its smallest
@@ -110,7 +108,7 @@ class PlantFaultError(RuntimeError):
     """The simulation blew up; the reason, in one line, is the message."""
 
 
-class MujocoWorld:
+class MujocoWorld(TorqueWorld):
     """The clock of every :class:`MujocoPlant` in it: the time step, and the step of all of
     them together (each robot is a MuJoCo model of its own: contacts are off)."""
 
@@ -128,25 +126,11 @@ class MujocoWorld:
         for plant in self.plants:
             plant.advance()
 
-    def step_torques(
-        self, plants: Sequence[MujocoPlant], torques: Sequence[np.ndarray], substeps: int, t: float
-    ) -> None:
-        """One lockstep period from time ``t`` [s]: each plant's torque held over ``substeps``
-        physics steps, as :meth:`sim_bridge.plant.World.step_torques`."""
-        for plant, tau in zip(plants, torques, strict=True):
-            plant.begin_torque(tau)
-        for k in range(substeps):
-            for plant in plants:
-                plant.apply_torque(k, t)
-            self.step()
-        for plant in plants:
-            plant.end_torque()
-
     def close(self) -> None:
         self.plants.clear()
 
 
-class MujocoPlant:
+class MujocoPlant(TorquePlant):
     """One robot in a :class:`MujocoWorld` (its own, or a shared one); the constructor's
     arguments mean what they mean for :class:`sim_bridge.plant.Plant`."""
 
@@ -184,22 +168,16 @@ class MujocoPlant:
         self._qadr = index(m.jnt_qposadr[ids])
         self._vadr = index(m.jnt_dofadr[ids])
         self.effort_limits = self._limits(mj_spec, effort_limits)
-        self._lowest_effort = -self.effort_limits
         self._brake_force = np.where(
             np.isfinite(self.effort_limits), self.effort_limits, LOCK_FORCE
         )
-        self._max_step: np.ndarray | None = None
         root = root_link(Path(spec.urdf_path))
         names = (m.body(b).name for b in range(1, m.nbody))  # body 0: the world
         self.link_names = {b: name for b, name in enumerate(names, 1) if name != root}
         self._payload_body = int(m.jnt_bodyid[ids[-1]])
+        self._last_link = self._payload_body
         self._base_mass = float(m.body_mass[self._payload_body])
-        self.friction = np.zeros(self.n)
-        self.set_friction(friction)
-        self.coulomb = self.static = np.zeros(self.n)
-        self._stiction = False
-        self._held: tuple[int, np.ndarray, np.ndarray] | None = None  # (body, f, μ)
-        self._schedule: tuple[int, WrenchSchedule] | None = None
+        self._start(friction)
         self.payload_mass = 0.0
         self.set_payload(payload_mass)
         self.initial_positions = per_joint(
@@ -208,8 +186,6 @@ class MujocoPlant:
         #: What MuJoCo said reading and compiling the URDF (a joint limit it ignores, say).
         #: Nothing is replaced silently: what PyBullet replaces with a warning is refused here.
         self.warnings = [f"MuJoCo, loading {spec.name}: {text}" for text in said]
-        self._effort = np.zeros(self.n)
-        self._target = self._tau = np.zeros(self.n)
         self.reset()
         self.world.plants.append(self)
 
@@ -225,60 +201,16 @@ class MujocoPlant:
         return np.where(urdf > 0, urdf, np.inf)
 
     # -- perturbations -----------------------------------------------------------------
-    def set_friction(self, friction: float | Sequence[float]) -> None:
-        self.friction = nonnegative(friction, self.n, "viscous_friction")
-        self._has_friction = bool(np.any(self.friction))
+    def _coulomb_changed(self, was_on: bool) -> None:
+        """MuJoCo's dry friction (``frictionloss``) of each joint is the Coulomb friction (a
+        joint held by it creeps, see the module docstring)."""
+        self._set_coulomb(self._coulomb_at(self._velocities()))
 
-    def set_coulomb_friction(
-        self, coulomb: float | Sequence[float], static: float | Sequence[float] = 0.0
-    ) -> None:
-        r"""Coulomb friction F_c [N·m or N] and stiction F_s (0: same as F_c), per joint.
-
-        MuJoCo's dry friction (``frictionloss``) of each joint is the friction: a constraint
-        solved with the dynamics, so a joint whose net torque stays within the bound is held
-        (creeping, see the module docstring) and a sliding one feels −F_c sign(q̇). With
-        stiction the bound is F_s while |q̇| < STICTION_SPEED, F_c above it (re-chosen at
-        every physics sub-step)."""
-        self.coulomb, self.static = coulomb_bounds(coulomb, static, self.n)
-        self._stiction = bool(np.any(self.static != self.coulomb))
-        self._friction_bounds(self.data.qvel[self._vadr])
-
-    def _friction_bounds(self, dq: np.ndarray) -> None:
-        if self._stiction:
-            bounds = np.where(np.abs(dq) < STICTION_SPEED, self.static, self.coulomb)
-        else:
-            bounds = self.coulomb
+    def _set_coulomb(self, bounds: np.ndarray) -> None:
         self.model.dof_frictionloss[self._vadr] = bounds
 
-    def link_index(self, link: str) -> int:
-        """MuJoCo's body id of the link named ``link`` ("": the child link of the last
-        controlled joint); ValueError for the fixed base or an unknown name."""
-        if not link:
-            return self._payload_body
-        for b, name in self.link_names.items():
-            if name == link:
-                return b
-        known = ", ".join(self.link_names.values())
-        raise ValueError(f"no moving link '{link}' in {self.spec.name} (links: {known})")
-
-    def hold_wrench(self, link: str, force: Sequence[float], torque: Sequence[float]) -> None:
-        """As :meth:`sim_bridge.plant.Plant.hold_wrench`: world frame, at the origin of the
-        link frame, applied to the robot, held until replaced; zero removes it."""
-        b = self.link_index(link)
-        f, mu = wrench_vector(force, "force"), wrench_vector(torque, "torque")
-        self._held = (b, f, mu) if (np.any(f) or np.any(mu)) else None
-
-    def set_wrench_schedule(self, schedule: WrenchSchedule | None) -> None:
-        """A wrench w(t) on simulation time (None or an inactive schedule: off); adds to the
-        held one."""
-        if schedule is None or not schedule.active:
-            self._schedule = None
-        else:
-            self._schedule = (self.link_index(schedule.link), schedule)
-
-    @property
-    def has_wrench(self) -> bool:
-        return self._held is not None or self._schedule is not None
+    def _velocities(self) -> np.ndarray:
+        return self.data.qvel[self._vadr]
 
     def _apply_wrench(self, t: float) -> None:
         """Jᵀw of the held and the scheduled wrench at time t, added to ``qfrc_applied``
@@ -295,13 +227,6 @@ class MujocoPlant:
     def _push(self, b: int, force: np.ndarray, torque: np.ndarray) -> None:
         d = self.data
         mujoco.mj_applyFT(self.model, d, force, torque, d.xpos[b], b, d.qfrc_applied)
-
-    def set_torque_rate_limit(self, max_rate: float | Sequence[float]) -> None:
-        """Limit the change of the applied torque to ``max_rate`` [N·m/s] per joint (0: no
-        limit), from whatever was applied last, braking included."""
-        rates = np.broadcast_to(np.asarray(max_rate, dtype=float), (self.n,))
-        steps = rate_steps(rates, self.dt)
-        self._max_step = None if np.all(np.isinf(steps)) else steps
 
     def set_payload(self, mass: float) -> None:
         """A point mass at the link's centre of mass: its mass grows, its inertia about that
@@ -321,11 +246,6 @@ class MujocoPlant:
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[self._qadr] = q
         self._effort = np.zeros(self.n)
-
-    def state(self) -> PlantState:
-        q, dq, effort = np.empty(self.n), np.empty(self.n), np.empty(self.n)
-        self.read_state(q, dq, effort)
-        return PlantState(q, dq, effort)
 
     def read_state(self, q: np.ndarray, dq: np.ndarray, effort: np.ndarray) -> None:
         """Write the state into the given arrays (the node's message image)."""
@@ -347,60 +267,15 @@ class MujocoPlant:
                 "physics_rate"
             )
 
-    def step(self, tau: np.ndarray, substeps: int = 1, t: float = 0.0) -> None:
-        """As :meth:`sim_bridge.plant.Plant.step`: tau held over ``substeps`` physics steps
-        with the friction and wrench of each sub-step. Steps this plant's world, as on
-        PyBullet: in a shared world, step every plant together with the begin/apply/end
-        methods and :meth:`MujocoWorld.step`."""
-        self.begin_torque(tau)
-        for k in range(substeps):
-            self.apply_torque(k, t)
-            self.world.step()
-        self.end_torque()
-
-    def begin_torque(self, tau: np.ndarray) -> None:
-        """Start a step under torque control: the command, clamped to the effort limits."""
-        self._target = np.clip(tau, self._lowest_effort, self.effort_limits)
-        self._tau = self._target
-
-    def apply_torque(self, k: int, t: float) -> None:
-        """The motor torques (rate limit, friction) and the wrench for sub-step k, before
-        the world steps."""
-        tau = self._tau
-        if self._max_step is not None:
-            tau = limit_rate(self._target, self._effort, self._max_step)
-            self._effort = self._tau = tau
-        if self._has_friction or self._stiction:
-            dq = self.data.qvel[self._vadr]
-            if self._has_friction:
-                tau = tau - self.friction * dq
-            if self._stiction:
-                self._friction_bounds(dq)
-        self.data.qfrc_applied[self._vadr] = tau
-        if self._held is not None or self._schedule is not None:
-            self._apply_wrench(t + k * self.dt)
-
-    def end_torque(self) -> None:
-        self._effort = self._tau
-
-    def brake(self, substeps: int = 1, t: float = 0.0) -> None:
-        """Safe fallback, as :meth:`sim_bridge.plant.Plant.brake`: dry friction up to the
-        effort limit on every joint, so the arm stops and holds wherever it is (the wrench
-        still acts); afterwards the friction is the Coulomb friction again. Steps this
-        plant's world (see :meth:`step`)."""
-        self.begin_brake()
-        for k in range(substeps):
-            self.apply_brake(k, t)
-            self.world.step()
-        self.end_brake()
+    def _command(self, applied: np.ndarray) -> None:
+        self.data.qfrc_applied[self._vadr] = applied
 
     def begin_brake(self) -> None:
         self.model.dof_frictionloss[self._vadr] = self._brake_force
 
     def apply_brake(self, k: int, t: float) -> None:
         self.data.qfrc_applied[self._vadr] = 0.0
-        if self._held is not None or self._schedule is not None:
-            self._apply_wrench(t + k * self.dt)
+        super().apply_brake(k, t)
 
     def end_brake(self) -> None:
         """The effort is what the brakes exerted in the last step (their constraint forces)."""
@@ -408,7 +283,7 @@ class MujocoPlant:
         rows = d.efc_type == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF
         self._effort = np.zeros(self.n)
         self._effort[self._joint_of_dof[d.efc_id[rows]]] = d.efc_force[rows]
-        self._friction_bounds(d.qvel[self._vadr])
+        self._set_coulomb(self._coulomb_at(d.qvel[self._vadr]))
 
     def close(self) -> None:
         """Leave the world (and close it when it is this plant's own)."""

@@ -25,49 +25,23 @@ Integration is Bullet's semi-implicit Euler at ``1 / physics_rate``.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pybullet as pb
 
-from joint_space_control.arrays import nonnegative, per_joint
-from joint_space_control.laws.limits import limit_rate, rate_steps
+from joint_space_control.arrays import per_joint
 from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
+from sim_bridge.torque_plant import GRAVITY, LOCK_FORCE, TorquePlant, TorqueWorld
 from sim_bridge.view import frame_view
-from sim_bridge.wrench import WrenchSchedule, wrench_vector
 
-GRAVITY = (0.0, 0.0, -9.81)
-#: Force [N or N·m] of the servos that lock the joints that are not controlled.
-LOCK_FORCE = 1.0e4
-#: A joint with stiction is stuck below this speed [rad/s or m/s]: the friction it can exert
-#: there is the static F_s, above it the Coulomb F_c.
-STICTION_SPEED = 1.0e-3
 #: Bullet's constraint solver while Coulomb friction is on: every iteration run (no early
 #: stop on the residual), enough of them that a stuck arm stays stuck (drift ~1e-10 rad/s
 #: on the iiwa, against ~3e-4 rad/s with the defaults, where the coupled joints creep).
 FRICTION_SOLVER = {"numSolverIterations": 100, "solverResidualThreshold": 0.0}
 #: PyBullet's defaults, restored when Coulomb friction is switched off again.
 DEFAULT_SOLVER = {"numSolverIterations": 50, "solverResidualThreshold": 1.0e-7}
-
-
-def coulomb_bounds(
-    coulomb: float | Sequence[float], static: float | Sequence[float], n: int | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """(F_c, F_s) per joint, checked: both ≥ 0, F_s = F_c where ``static`` is 0, otherwise
-    F_s ≥ F_c (n: the number of joints; None: as many as given)."""
-    if n is None:
-        n = max(np.size(coulomb), np.size(static))
-    fc = nonnegative(coulomb, n, "coulomb_friction")
-    fs = nonnegative(static, n, "static_friction")
-    fs = np.where(fs > 0, fs, fc)
-    if np.any(fs < fc):
-        raise ValueError(
-            f"'static_friction' must be 0 (= coulomb_friction) or >= coulomb_friction "
-            f"{fc.tolist()}, got {fs.tolist()}"
-        )
-    return fc, fs
 
 
 def rotation(quaternion: Sequence[float]) -> np.ndarray:
@@ -82,7 +56,7 @@ def rotation(quaternion: Sequence[float]) -> np.ndarray:
     )
 
 
-class World:
+class World(TorqueWorld):
     """One PyBullet physics client: gravity, the time step, and the step of every robot in
     it together (several :class:`Plant` may share one world: one clock for all)."""
 
@@ -101,22 +75,6 @@ class World:
     def step(self) -> None:
         pb.stepSimulation(physicsClientId=self.client)
 
-    def step_torques(
-        self, plants: Sequence[Plant], torques: Sequence[np.ndarray], substeps: int, t: float
-    ) -> None:
-        """One lockstep period from time ``t`` [s]: each plant's torque held over
-        ``substeps`` physics steps of the whole world (with each plant's friction, rate
-        limit and wrench applied before every step). sim_bridge's lockstep and the
-        in-process engine both step the world through here."""
-        for plant, tau in zip(plants, torques, strict=True):
-            plant.begin_torque(tau)
-        for k in range(substeps):
-            for plant in plants:
-                plant.apply_torque(k, t)
-            self.step()
-        for plant in plants:
-            plant.end_torque()
-
     def friction_solver(self, plant: Plant, on: bool) -> None:
         """Bullet's solver settings for Coulomb friction while any plant of the world has it
         (:data:`FRICTION_SOLVER`; the solver is the world's)."""
@@ -134,14 +92,7 @@ class World:
             pb.disconnect(self.client)
 
 
-@dataclass
-class PlantState:
-    q: np.ndarray
-    dq: np.ndarray
-    effort: np.ndarray  # motor torque applied during the last step [N·m]
-
-
-class Plant:
+class Plant(TorquePlant):
     """One robot, in a PyBullet world of its own or in a shared :class:`World`."""
 
     def __init__(
@@ -182,12 +133,7 @@ class Plant:
             if self._own_world:
                 self.world.close()
             raise
-        self.friction = np.zeros(self.n)
-        self.set_friction(friction)
-        self.coulomb = self.static = np.zeros(self.n)
-        self._coulomb_on = self._stiction = False
-        self._held: tuple[int, np.ndarray, np.ndarray] | None = None  # (link, f, μ)
-        self._schedule: tuple[int, WrenchSchedule] | None = None
+        self._start(friction)
         self._origins: dict[int, np.ndarray] = {}  # link frame origin in the CoM frame
         info = pb.getDynamicsInfo(self.body, self._idx[-1], self.client)
         self._base_mass, self._last_inertia = info[0], list(info[2])
@@ -197,8 +143,6 @@ class Plant:
             0.0 if initial_positions is None else initial_positions, self.n, "initial_positions"
         )
         self.warnings = self._inertia_warnings()
-        self._effort = np.zeros(self.n)
-        self._target = np.zeros(self.n)  # the clamped command of the step being taken
         self.reset()
         if self._own_world and self.world.gui:  # the robot as it starts, no panels
             frame_view(self.client, [self.body])
@@ -233,6 +177,7 @@ class Plant:
         if missing:
             raise ValueError(f"unknown joints {missing} in {Path(self.spec.urdf_path).name}")
         self._idx = [by_name[name][0] for name in self.joint_names]
+        self._last_link = self._idx[-1]
         if effort_limits is not None:  # the controller model's (override or URDF)
             limits = np.broadcast_to(np.asarray(effort_limits, dtype=float), (self.n,))
             if not np.all(limits > 0):  # inf: no limit (a URDF that says none)
@@ -242,8 +187,6 @@ class Plant:
             self.effort_limits = np.array(
                 [by_name[name][1][10] if by_name[name][1][10] > 0 else np.inf for name in joints]
             )
-        self._lowest_effort = -self.effort_limits
-        self._max_step: np.ndarray | None = None  # torque-rate limit per physics step [N·m]
         # A link without <inertial> is massless for Pinocchio (and the URDF spec); PyBullet
         # would give it 1 kg and a unit inertia.
         inertials = urdf_facts(Path(self.spec.urdf_path)).inertials
@@ -310,79 +253,28 @@ class Plant:
         return warnings
 
     # -- perturbations -----------------------------------------------------------------
-    def set_friction(self, friction: float | Sequence[float]) -> None:
-        self.friction = nonnegative(friction, self.n, "viscous_friction")
-        self._has_friction = bool(np.any(self.friction))
-
-    def set_coulomb_friction(
-        self, coulomb: float | Sequence[float], static: float | Sequence[float] = 0.0
-    ) -> None:
-        r"""Coulomb friction F_c [N·m or N] and stiction F_s (0: same as F_c), per joint.
-
-        Each joint's velocity motor, with target speed 0 and at most F_c, is the friction: a
-        constraint Bullet solves with the dynamics, so a joint whose net torque stays within
-        the bound is held at rest (no chattering around q̇ = 0) and a sliding one feels
-        −F_c sign(q̇). With stiction the bound is F_s while |q̇| < :data:`STICTION_SPEED`, F_c
-        above it (re-chosen at every physics sub-step)."""
-        fc, fs = coulomb_bounds(coulomb, static, self.n)
-        was_on = self._coulomb_on
-        self.coulomb, self.static = fc, fs
-        self._coulomb_on = bool(np.any(fs))
-        self._stiction = bool(np.any(fs != fc))
+    def _coulomb_changed(self, was_on: bool) -> None:
+        """Each joint's velocity motor, with target speed 0 and at most the Coulomb bound, is
+        the friction (Bullet's solver set for it while any plant of the world has one)."""
         if self._coulomb_on != was_on:
             self.world.friction_solver(self, self._coulomb_on)
         if self._coulomb_on or was_on:
-            self._friction_motors(self._velocities())
+            self._set_coulomb(self._coulomb_at(self._velocities()))
 
     def _velocities(self) -> np.ndarray:
         states = pb.getJointStates(self.body, self._idx, physicsClientId=self.client)
         return np.array([s[1] for s in states])
 
-    def _friction_motors(self, dq: np.ndarray) -> None:
+    def _set_coulomb(self, bounds: np.ndarray) -> None:
         """Velocity motors as Coulomb friction (force 0 when there is none)."""
-        if self._stiction:
-            forces = np.where(np.abs(dq) < STICTION_SPEED, self.static, self.coulomb)
-        else:
-            forces = self.coulomb
         pb.setJointMotorControlArray(
             self.body,
             self._idx,
             pb.VELOCITY_CONTROL,
             targetVelocities=[0.0] * self.n,
-            forces=forces.tolist(),
+            forces=bounds.tolist(),
             physicsClientId=self.client,
         )
-
-    def link_index(self, link: str) -> int:
-        """PyBullet's index of the link named ``link`` ("": the child link of the last
-        controlled joint); ValueError for the fixed base or an unknown name."""
-        if not link:
-            return self._idx[-1]
-        for j, name in self.link_names.items():
-            if name == link:
-                return j
-        known = ", ".join(self.link_names.values())
-        raise ValueError(f"no moving link '{link}' in {self.spec.name} (links: {known})")
-
-    def hold_wrench(self, link: str, force: Sequence[float], torque: Sequence[float]) -> None:
-        """Apply the wrench (force [N], torque [N·m], world frame, at the origin of the link
-        frame; applied *to* the robot) from now on, instead of the one held before; a zero
-        wrench removes it."""
-        j = self.link_index(link)
-        f, mu = wrench_vector(force, "force"), wrench_vector(torque, "torque")
-        self._held = (j, f, mu) if (np.any(f) or np.any(mu)) else None
-
-    def set_wrench_schedule(self, schedule: WrenchSchedule | None) -> None:
-        """A wrench w(t) on simulation time (None or an inactive schedule: off); adds to the
-        held one."""
-        if schedule is None or not schedule.active:
-            self._schedule = None
-        else:
-            self._schedule = (self.link_index(schedule.link), schedule)
-
-    @property
-    def has_wrench(self) -> bool:
-        return self._held is not None or self._schedule is not None
 
     def _apply_wrench(self, t: float) -> None:
         """The held and the scheduled wrench at time t, for the next physics step (Bullet
@@ -416,13 +308,6 @@ class Plant:
             self._origins[j] = origin
         return origin
 
-    def set_torque_rate_limit(self, max_rate: float | Sequence[float]) -> None:
-        """Limit the change of the applied torque to ``max_rate`` [N·m/s] per joint (0: no
-        limit), from whatever was applied last, braking included."""
-        rates = np.broadcast_to(np.asarray(max_rate, dtype=float), (self.n,))
-        steps = rate_steps(rates, self.dt)
-        self._max_step = None if np.all(np.isinf(steps)) else steps
-
     def set_payload(self, mass: float) -> None:
         if not np.isfinite(mass) or mass < 0:
             raise ValueError("payload_mass must be a finite value >= 0")
@@ -447,11 +332,6 @@ class Plant:
             pb.resetJointState(self.body, j, target, 0.0, physicsClientId=self.client)
         self._effort = np.zeros(self.n)
 
-    def state(self) -> PlantState:
-        q, dq, effort = np.empty(self.n), np.empty(self.n), np.empty(self.n)
-        self.read_state(q, dq, effort)
-        return PlantState(q, dq, effort)
-
     def read_state(self, q: np.ndarray, dq: np.ndarray, effort: np.ndarray) -> None:
         """Write the state into the given arrays (the node's message image): no allocation
         per joint."""
@@ -461,39 +341,7 @@ class Plant:
         dq[:] = velocities
         effort[:] = self._effort
 
-    def step(self, tau: np.ndarray, substeps: int = 1, t: float = 0.0) -> None:
-        """Hold the motor torque tau (clamped to the effort limits, and approached at the
-        torque-rate limit if one is set) over ``substeps`` physics steps, adding the viscous
-        friction −F q̇ evaluated at each sub-step, the Coulomb friction and the external
-        wrench (scheduled ones evaluated at t + k dt for sub-step k; t [s] is the
-        simulation time at the start). Steps this plant's world: in a shared world, step
-        every plant together with :meth:`begin_torque`/:meth:`apply_torque` (or the brake
-        equivalents) and :meth:`World.step`."""
-        self.begin_torque(tau)
-        for k in range(substeps):
-            self.apply_torque(k, t)
-            self.world.step()
-        self.end_torque()
-
-    def begin_torque(self, tau: np.ndarray) -> None:
-        """Start a step under torque control: the command, clamped to the effort limits."""
-        self._target = np.clip(tau, self._lowest_effort, self.effort_limits)
-        self._tau = self._target
-
-    def apply_torque(self, k: int, t: float) -> None:
-        """The motor torques (rate limit, friction) and the wrench for sub-step k, before
-        the world steps."""
-        tau = self._tau
-        if self._max_step is not None:
-            tau = limit_rate(self._target, self._effort, self._max_step)
-            self._effort = self._tau = tau
-        if self._has_friction or self._stiction:
-            dq = self._velocities()
-            applied = tau - self.friction * dq if self._has_friction else tau
-            if self._stiction:
-                self._friction_motors(dq)
-        else:
-            applied = tau
+    def _command(self, applied: np.ndarray) -> None:
         pb.setJointMotorControlArray(
             self.body,
             self._idx,
@@ -501,22 +349,6 @@ class Plant:
             forces=applied.tolist(),
             physicsClientId=self.client,
         )
-        if self._held is not None or self._schedule is not None:
-            self._apply_wrench(t + k * self.dt)
-
-    def end_torque(self) -> None:
-        self._effort = self._tau
-
-    def brake(self, substeps: int = 1, t: float = 0.0) -> None:
-        """Safe fallback: engage brakes, i.e. velocity servos with zero target speed and at
-        most the effort limit, so the arm stops and holds wherever it is (the external
-        wrench still acts, at t + k dt). Afterwards the velocity motors are the Coulomb
-        friction again (force 0 without it). Steps this plant's world (see :meth:`step`)."""
-        self.begin_brake()
-        for k in range(substeps):
-            self.apply_brake(k, t)
-            self.world.step()
-        self.end_brake()
 
     def begin_brake(self) -> None:
         forces = np.where(np.isfinite(self.effort_limits), self.effort_limits, LOCK_FORCE)
@@ -529,16 +361,12 @@ class Plant:
             physicsClientId=self.client,
         )
 
-    def apply_brake(self, k: int, t: float) -> None:
-        if self._held is not None or self._schedule is not None:
-            self._apply_wrench(t + k * self.dt)
-
     def end_brake(self) -> None:
         c, body, idx = self.client, self.body, self._idx
         _, dq, _, applied = zip(*pb.getJointStates(body, idx, physicsClientId=c), strict=True)
         self._effort = np.array(applied)
         if self._coulomb_on:
-            self._friction_motors(np.array(dq))
+            self._set_coulomb(self._coulomb_at(np.array(dq)))
         else:
             pb.setJointMotorControlArray(
                 body, idx, pb.VELOCITY_CONTROL, forces=[0.0] * self.n, physicsClientId=c

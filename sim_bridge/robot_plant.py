@@ -18,8 +18,9 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.control import parameters as params
-from sim_bridge.plant import Plant, World, coulomb_bounds
+from sim_bridge.plant import Plant, World
 from sim_bridge.sensors import Encoder
+from sim_bridge.torque_plant import coulomb_bounds
 from sim_bridge.wrench import WrenchSchedule
 
 

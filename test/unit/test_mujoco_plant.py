@@ -23,7 +23,7 @@ from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 from joint_space_control.model.robots import RobotSpec, resolve_robot
 from sim_bridge.mujoco_plant import MujocoPlant, MujocoWorld, PlantFaultError
-from sim_bridge.plant import STICTION_SPEED
+from sim_bridge.torque_plant import STICTION_SPEED
 from test.corpus import BY_NAME, CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS
 from test.unit.test_plant_imperfections import run
 

@@ -18,7 +18,8 @@ import pytest
 
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from sim_bridge.plant import STICTION_SPEED, Plant, coulomb_bounds
+from sim_bridge.plant import Plant
+from sim_bridge.torque_plant import STICTION_SPEED, coulomb_bounds
 from sim_bridge.wrench import WrenchSchedule
 
 FC = np.array([50.0, 30.0])  # [N·m] Coulomb
