@@ -6,6 +6,8 @@ torque-rate limiter; both keep the command finite as long as their inputs are.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 
@@ -28,3 +30,16 @@ def beyond_bound(tau: np.ndarray, limits: np.ndarray, factor: float) -> bool:
     """True when some |τ_i| exceeds ``factor`` × its effort limit: not a torque to clamp but
     a sign that its sender is broken (no bound where the limit is inf)."""
     return bool(np.any(np.abs(tau) > factor * np.asarray(limits)))
+
+
+def joints_beyond(
+    tau: np.ndarray, limits: np.ndarray, names: Sequence[str], factor: float = 1.0
+) -> str:
+    """The joints whose |τ_i| exceeds ``factor`` × its effort limit, each with its torque and
+    limit ("right_s1 -212 N·m (limit 50)"), comma-separated; "" when none does."""
+    limits = np.asarray(limits, dtype=float)
+    return ", ".join(
+        f"{name} {t:.4g} N·m (limit {limit:g})"
+        for name, t, limit in zip(names, np.asarray(tau, dtype=float), limits, strict=True)
+        if abs(t) > factor * limit
+    )

@@ -88,7 +88,7 @@ from joint_space_control.control.configure import (  # noqa: F401  (re-exported)
 from joint_space_control.control.controller import Step
 from joint_space_control.control.sampling import VelocitySource
 from joint_space_control.laws.gains import GainChoice
-from joint_space_control.laws.limits import beyond_bound
+from joint_space_control.laws.limits import beyond_bound, joints_beyond
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.ros import parameters as params
 from joint_space_control.ros.control_path import ControlPath
@@ -187,6 +187,7 @@ class JointController(Node):
         self._velocity_said: VelocitySource | None = None  # the source last logged
         self._last_step: Step | None = None  # the step of the control period in force
         self._period_warned = False
+        self._gravity_checked = False  # g(q) against the effort limits, at the first state
         self._values = values  # the parameter values in force
         self._state_timeout = params.value(values, "state_timeout")
         self._reject_factor = params.value(values, "reject_factor")
@@ -614,6 +615,19 @@ class JointController(Node):
                 f"it, {period.realised * 1e3:g} ms (on /diagnostics: control_period)"
             )
 
+    def _say_unholdable(self, q: np.ndarray) -> None:
+        """Once, at the first measured configuration: the joints whose gravity torque there
+        (the controller model's g(q)) is beyond their effort limit. The commands are clamped
+        at the limits, so the arm cannot hold that configuration, whatever the gains."""
+        beyond = joints_beyond(self.model.gravity(q), self.effort_limits, self.joints)
+        if beyond:
+            self.get_logger().warning(
+                f"the arm cannot hold its configuration against gravity: g(q) needs {beyond} "
+                f"at q = {np.round(q, 4).tolist()} rad; the commands are clamped at the "
+                "effort limits, so it sags there (start elsewhere, lighten the payload, or "
+                "set effort_limits if the hardware has more)"
+            )
+
     # -- the tick ----------------------------------------------------------------------
     def _tick(self, t: float) -> int:
         """Step the controller and publish the command and the state; returns when the
@@ -628,6 +642,9 @@ class JointController(Node):
             except ValueError as err:  # velocity_source measured, this state has none
                 self._log.error("no command", "no command: {}", err)
                 return -1
+            if not self._gravity_checked:
+                self._gravity_checked = True
+                self._say_unholdable(self._q)
             if step is held:  # inside a control period: the held torque answers this state
                 self._command.set_stamp(self._state_ns)
                 self._command_bytes = self._command.to_bytes()
@@ -653,8 +670,11 @@ class JointController(Node):
                 self._log.warning(
                     "beyond bound",
                     lambda: (
-                        f"computed torque {step.unclamped.tolist()} beyond "
-                        f"{self._reject_factor:g} × the effort limits (reject_factor): clamped"
+                        f"computed torque beyond {self._reject_factor:g} × the effort limits "
+                        "(reject_factor): clamped; "
+                        + joints_beyond(
+                            step.unclamped, self.effort_limits, self.joints, self._reject_factor
+                        )
                     ),
                 )
             listening = self._state_pub.get_subscription_count() > 0  # else: nothing to build

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from joint_space_control.laws.limits import beyond_bound, limit_rate, rate_steps
+from joint_space_control.laws.limits import beyond_bound, joints_beyond, limit_rate, rate_steps
 from joint_space_control.model.robots import resolve_robot
 from sim_bridge.plant import Plant
 
@@ -80,3 +80,15 @@ def test_beyond_bound_is_a_multiple_of_the_limits_and_never_for_unlimited_joints
     assert beyond_bound(np.array([0.0, -2000.1, 0.0]), limits, 2.0)
     assert not beyond_bound(np.array([2500.0, 0.0, 0.0]), limits, 2.0)  # clamped, not rejected
     assert beyond_bound(np.array([2500.0, 0.0, 0.0]), limits, 1.0)
+
+
+def test_joints_beyond_names_each_joint_with_its_torque_and_limit():
+    limits = np.array([50.0, 50.0, np.inf])
+    names = ("right_s0", "right_s1", "free")
+    assert joints_beyond(np.array([10.0, -212.0, 1e9]), limits, names) == (
+        "right_s1 -212 N·m (limit 50)"
+    )
+    assert joints_beyond(np.array([120.0, -101.0, 0.0]), limits, names, 2.0) == (
+        "right_s0 120 N·m (limit 50), right_s1 -101 N·m (limit 50)"
+    )
+    assert joints_beyond(np.array([50.0, -50.0, 1e300]), limits, names) == ""  # at the limit
