@@ -25,6 +25,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from joint_space_control.experiments.harness.client import RosClient
 from joint_space_control.experiments.harness.domains import lease_domain
+from joint_space_control.experiments.harness.loop import wait_recorder_matched
 from joint_space_control.experiments.harness.processes import ProcessGroup, isolated_env
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
@@ -101,15 +102,7 @@ class Recording:
         self.node = self.group.start("recorder", {**AS_USERS_RUN_IT, "output": str(self.output)})
         client = RosClient(self.domain_id, f"jsc_bench_recording_{self.domain_id}")
         try:
-            deadline = time.monotonic() + 30.0
-            while True:
-                answer = client.call_trigger("/recorder/matched", check=self.group.check_alive)
-                matched = json.loads(answer.message)
-                if all(matched.get(t, 0) >= 1 for t in RECORDED):
-                    break
-                if time.monotonic() > deadline:
-                    raise TimeoutError(f"the bench's recorder matched only {matched}")
-                client.spin_for(0.1, self.group.check_alive)
+            wait_recorder_matched(client, RECORDED, self.group.check_alive, timeout=30.0)
         finally:
             client.close()
         return self

@@ -14,12 +14,13 @@ from __future__ import annotations
 import json
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from joint_space_control.experiments.harness.client import RosClient
 from joint_space_control.experiments.harness.domains import lease_domain
 from joint_space_control.experiments.harness.probe import LoopProbe, in_namespace
 from joint_space_control.experiments.harness.processes import ProcessGroup
@@ -136,26 +137,8 @@ class ClosedLoop:
             raise
 
     def wait_recorder_matched(self, topics: Sequence[str], timeout: float = 20.0) -> None:
-        """Wait until the recorder's subscription to each of ``topics`` is matched with a
-        publisher (its ``~/matched``), then :data:`MATCH_MARGIN`. A subscription the graph
-        shows is not yet one the publisher sends to: under load the controller's ``~/state``
-        was matched 0.18 s into a lockstep run, and its first 357 of 1001 states were
-        missing from the bag. The recorder's side of a match comes first; the publisher's,
-        which nothing outside its process can see, follows."""
-        deadline = time.monotonic() + timeout
-        while True:
-            response = self.probe.call_trigger("/recorder/matched", check=self.group.check_alive)
-            matched = json.loads(response.message)
-            unmatched = [t for t in topics if matched.get(t, 0) < 1]
-            if not unmatched:
-                self.probe.spin_for(MATCH_MARGIN)
-                return
-            if time.monotonic() > deadline:
-                raise TimeoutError(
-                    f"the recorder's subscriptions to {unmatched} were not matched with a "
-                    f"publisher within {timeout:g} s"
-                )
-            self.probe.spin_for(RECORD_POLL)
+        """:func:`wait_recorder_matched` with the run's probe."""
+        wait_recorder_matched(self.probe, topics, self.group.check_alive, timeout)
 
     def start(
         self,
@@ -280,6 +263,34 @@ class ClosedLoop:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def wait_recorder_matched(
+    client: RosClient,
+    topics: Sequence[str],
+    check: Callable[[], None],
+    timeout: float = 20.0,
+) -> None:
+    """Wait until the recorder's subscription to each of ``topics`` is matched with a
+    publisher (its ``~/matched``, asked through ``client``), then :data:`MATCH_MARGIN`. A
+    subscription the graph shows is not yet one the publisher sends to: under load the
+    controller's ``~/state`` was matched 0.18 s into a lockstep run, and its first 357 of
+    1001 states were missing from the bag. The recorder's side of a match comes first; the
+    publisher's, which nothing outside its process can see, follows."""
+    deadline = time.monotonic() + timeout
+    while True:
+        response = client.call_trigger("/recorder/matched", check=check)
+        matched = json.loads(response.message)
+        unmatched = [t for t in topics if matched.get(t, 0) < 1]
+        if not unmatched:
+            client.spin_for(MATCH_MARGIN)
+            return
+        if time.monotonic() > deadline:
+            raise TimeoutError(
+                f"the recorder's subscriptions to {unmatched} were not matched with a "
+                f"publisher within {timeout:g} s"
+            )
+        client.spin_for(RECORD_POLL, check)
 
 
 def _absolute(namespace: str, *topics: str) -> list[str]:
