@@ -36,6 +36,9 @@ from urllib.parse import unquote, urlparse
 
 #: Joint types that make the base mobile: refused (module docstring).
 FLOATING_JOINT_TYPES = ("floating", "planar")
+#: Names of the links a legged robot stands on: a description with several kinematic chains
+#: ending in one of these looks like a floating-base robot.
+FOOT_WORDS = ("foot", "feet", "toe", "sole")
 
 
 class DescriptionError(ValueError):
@@ -103,6 +106,31 @@ def parse_urdf(text: str, source: str):
     if not any(j.type in ("revolute", "continuous", "prismatic") for j in robot.joints):
         raise DescriptionError(f"robot description ({source}) has no movable joint")
     return robot
+
+
+def floating_base_hint(robot) -> str:
+    """A warning when the description (a ``yourdfpy.Robot`` without a floating joint) looks
+    like a floating-base robot: several kinematic chains ending in feet (leaf links named
+    foot, feet, toe or sole). It is loaded fixed at its root link all the same; "" for an
+    arm."""
+    parents = {j.parent for j in robot.joints}
+    children = {j.child for j in robot.joints}
+    feet = [
+        link.name
+        for link in robot.links
+        if link.name not in parents and any(w in link.name.lower() for w in FOOT_WORDS)
+    ]
+    if len(feet) < 2:
+        return ""
+    root = next((link.name for link in robot.links if link.name not in children), "?")
+    shown = ", ".join(feet[:4]) + (", ..." if len(feet) > 4 else "")
+    return (
+        f"the description looks like a floating-base robot ({len(feet)} kinematic chains end "
+        f"in feet: {shown}) but has no floating joint: it is loaded with its root link "
+        f"'{root}' fixed in the world, its feet in the air. This package controls fixed-base "
+        "arms: to have such a description refused instead, give its root a floating joint "
+        "(a floating base is refused at start)"
+    )
 
 
 # -- package:// and file:// URIs ---------------------------------------------------------

@@ -19,6 +19,7 @@ import numpy as np
 
 from joint_space_control.model.description import (
     DescriptionError,
+    floating_base_hint,
     materialize,
     parse_urdf,
     parse_xacro_args,
@@ -120,6 +121,8 @@ def _load(text: str, source: str, path: Path | None, package_paths: Sequence[str
             "their visual/collision shapes are left out (the dynamics do not use them): set "
             "'package_paths' or ROS_PACKAGE_PATH to the folder holding their package"
         )
+    if hint := floating_base_hint(robot):
+        warnings.append(hint)
     if path is None or changed or path.suffix == ".xacro":
         path = materialize(resolved)
     return RobotSpec(robot.name or "robot", path, _actuated(robot.joints), tuple(warnings))
