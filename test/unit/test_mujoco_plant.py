@@ -25,7 +25,7 @@ from joint_space_control.model.robots import RobotSpec, resolve_robot
 from sim_bridge.mujoco_plant import MujocoPlant, MujocoWorld, PlantFaultError
 from sim_bridge.torque_plant import STICTION_SPEED
 from test.corpus import BY_NAME, CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS
-from test.unit.test_plant_imperfections import run
+from test.unit.test_plant_imperfections import acceleration, check_wrench, run
 
 REL = 1e-12  # relative to the scale of the compared quantity
 FRICTION = 0.7  # [N·m·s/rad]
@@ -339,12 +339,6 @@ FS = np.array([80.0, 60.0])  # [N·m] stiction
 Q0 = np.array([0.3, -0.5])
 
 
-def acceleration(plant: MujocoPlant, tau: np.ndarray, t: float = 0.0) -> np.ndarray:
-    v0 = plant.state().dq
-    plant.step(tau, 1, t)
-    return (plant.state().dq - v0) / plant.dt
-
-
 def test_stiction_holds_and_sliding_friction_is_coulomb(make_plant, models):
     """Below F_s the arm holds, creeping < 1e-5 rad in 1 s (MuJoCo's friction is a soft
     constraint: ~7e-7 observed); with F_s = F_c the same torque slides; a sliding joint feels
@@ -390,24 +384,9 @@ def test_brakes_stop_and_hold_the_arm_and_release_it(make_plant, models):
 
 @pytest.mark.parametrize(("robot", "link"), [("planar_2dof", "link1"), ("iiwa", "")])
 def test_wrench_is_jacobian_transpose_of_pinocchio(make_plant, models, robot, link):
-    """τ = g − Jᵀw holds the arm at rest, τ = g gives q̈ = B⁻¹Jᵀw (J: Pinocchio's, at the
-    URDF link frame, world-aligned)."""
-    model = models[robot]
-    plant = make_plant(model)
-    name = link or plant.link_names[plant.link_index("")]
-    rng = np.random.default_rng(14)
-    lo, hi = model.position_limits
-    for _ in range(2):
-        q = rng.uniform(0.6 * lo, 0.6 * hi)
-        w = np.r_[rng.normal(0.0, 30.0, 3), rng.normal(0.0, 5.0, 3)]  # [N], [N·m]
-        jtw = model.link_jacobian(q, name).T @ w
-        expected = np.linalg.solve(model.inertia(q), jtw)
-        atol = REL * (1 + np.abs(expected).max())
-        plant.hold_wrench(link, w[:3], w[3:])
-        plant.reset(q)
-        np.testing.assert_allclose(acceleration(plant, model.gravity(q) - jtw), 0, atol=atol)
-        plant.reset(q)
-        np.testing.assert_allclose(acceleration(plant, model.gravity(q)), expected, atol=atol)
+    """Two configurations, as on PyBullet (test_plant_imperfections.check_wrench)."""
+    plant = make_plant(models[robot])
+    check_wrench(plant, models[robot], link, 2)
     with pytest.raises(ValueError, match="no moving link"):
         plant.hold_wrench("no_such_link", [1.0, 0.0, 0.0], [0.0] * 3)
 

@@ -140,14 +140,18 @@ CASES = [
 
 @pytest.mark.parametrize(("robot", "link"), CASES)
 def test_wrench_is_jacobian_transpose_of_pinocchio(make_plant, models, robot, link):
-    """Three configurations, random wrench: τ = g − Jᵀw holds the arm at rest, τ = g gives
-    q̈ = B⁻¹Jᵀw (J: Pinocchio, LOCAL_WORLD_ALIGNED, at the URDF link frame)."""
-    model = models[robot]
-    plant = make_plant(robot)
+    """Three configurations, random wrench (:func:`check_wrench`)."""
+    check_wrench(make_plant(robot), models[robot], link, 3)
+
+
+def check_wrench(plant, model: RobotModel, link: str, configurations: int) -> None:
+    """At random configurations, a random wrench on ``link`` (any engine's plant): τ = g − Jᵀw
+    holds the arm at rest, τ = g gives q̈ = B⁻¹Jᵀw (J: Pinocchio, LOCAL_WORLD_ALIGNED, at the
+    URDF link frame), to REL."""
     name = link or plant.link_names[plant.link_index("")]
     rng = np.random.default_rng(14)
     lo, hi = model.position_limits
-    for _ in range(3):
+    for _ in range(configurations):
         q = rng.uniform(0.6 * lo, 0.6 * hi)
         w = np.r_[rng.normal(0.0, 30.0, 3), rng.normal(0.0, 5.0, 3)]  # [N], [N·m]
         jtw = model.link_jacobian(q, name).T @ w
