@@ -49,6 +49,9 @@ REALTIME_CASES = tuple((load, p) for load in ("quiet", "hog") for p in REALTIME_
 FLOOR = "realtime_floor"
 ROBOTS = ("planar_2dof", "iiwa")
 LAWS = tuple(compute.LAWS)
+#: The lockstep loops measured in each round, by result key: the bench's own (False), and
+#: the same loop as users run it (True: ros.AS_USERS_RUN_IT, with a recorder).
+LOCKSTEP_KINDS = {"lockstep": False, "lockstep_as_used": True}
 
 
 @dataclass(frozen=True)
@@ -149,8 +152,7 @@ def run(
     # per round and robot, the ping-pong right before the loops it is compared with
     rounds = max(1, options.rounds)
     pingpongs: list[dict[str, Any]] = []
-    loops: list[dict[str, Any]] = []
-    as_used: list[dict[str, Any]] = []
+    loops: dict[str, list[dict[str, Any]]] = {key: [] for key in LOCKSTEP_KINDS}
     for k in range(rounds):
         for robot in ROBOTS:
             if "pingpong" in sections:
@@ -162,37 +164,26 @@ def run(
                 )
                 pingpongs.append({**row, "round": k})
             if "lockstep" in sections:
-                rows = measured(
-                    f"lockstep_{robot}",
-                    lambda robot=robot, k=k: ros.lockstep(
-                        out / "runs" / f"lockstep_{robot}_{k}",
-                        robot,
-                        LAWS,
-                        options.lockstep_seconds / rounds,
-                        log,
-                    ),
-                )
-                loops.extend({**row, "round": k} for row in rows)
-                # the same loop as users run it: on simulated time, with a recorder
-                rows = measured(
-                    f"lockstep_as_used_{robot}",
-                    lambda robot=robot, k=k: ros.lockstep(
-                        out / "runs" / f"lockstep_as_used_{robot}_{k}",
-                        robot,
-                        LAWS,
-                        options.lockstep_seconds / rounds,
-                        log,
-                        controller_params=ros.AS_USERS_RUN_IT,
-                        recorded=True,
-                    ),
-                )
-                as_used.extend({**row, "round": k} for row in rows)
+                for key, as_used in LOCKSTEP_KINDS.items():
+                    rows = measured(
+                        f"{key}_{robot}",
+                        lambda robot=robot, k=k, key=key, as_used=as_used: ros.lockstep(
+                            out / "runs" / f"{key}_{robot}_{k}",
+                            robot,
+                            LAWS,
+                            options.lockstep_seconds / rounds,
+                            log,
+                            controller_params=ros.AS_USERS_RUN_IT if as_used else None,
+                            recorded=as_used,
+                        ),
+                    )
+                    loops[key].extend({**row, "round": k} for row in rows)
     if pingpongs:
         result["pingpong"] = [
             median_row([r for r in pingpongs if r["robot"] == robot], "round_trips_per_s")
             for robot in ROBOTS
         ]
-    for key, rows in (("lockstep", loops), ("lockstep_as_used", as_used)):
+    for key, rows in loops.items():
         if rows:
             result[key] = [
                 median_row(
@@ -201,7 +192,7 @@ def run(
                 for robot in ROBOTS
                 for law in LAWS
             ]
-    result["rounds"] = {"pingpong": pingpongs, "lockstep": loops, "lockstep_as_used": as_used}
+    result["rounds"] = {"pingpong": pingpongs, **loops}
     if "realtime" in sections:
         result["fifo_permitted"] = scheduling.fifo_permitted(max(REALTIME_PRIORITIES))
         floors, rows = [], []
