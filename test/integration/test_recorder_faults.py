@@ -109,13 +109,21 @@ def test_sigkill_mid_run_loses_at_most_a_flush_period_and_recovers(tmp_path, sto
         recorder.signal(signal.SIGKILL)  # mid-run: the loop goes on
         assert recorder.proc.wait(timeout=15) == -signal.SIGKILL
         run.pause()
+        assert not (bag / "metadata.yaml").exists()  # nothing closed the bag
+        result = jsc("recover", str(bag), "--out", str(tmp_path / "recovered"))
+        assert result.returncode == 0, result.stderr
+        assert "incomplete" in result.stdout, result.stdout
+        stamps, _, positions = joint_states(tmp_path / "recovered")
+        # the probe can lag the loop by more than pause()'s quiet 0.3 s (a recorder that
+        # kept up had states 0.45 s past the probe's last): it takes what is still on its
+        # way up to the bag's last state; one the loop never published would never come
+        run.probe.spin_until(
+            lambda: run.probe.latest_time() >= stamps.max() - 1e-9,
+            30.0,
+            f"the probe to see the loop's state at {stamps.max():.3f} s, the bag's last",
+            run.group.check_alive,
+        )
         t, q, _, _ = run.probe.recording.arrays()
-    assert not (bag / "metadata.yaml").exists()  # nothing closed the bag
-
-    result = jsc("recover", str(bag), "--out", str(tmp_path / "recovered"))
-    assert result.returncode == 0, result.stderr
-    assert "incomplete" in result.stdout, result.stdout
-    stamps, _, positions = joint_states(tmp_path / "recovered")
     # every step of the loop from the first recorded on, without a gap (the first states can
     # precede the simulator's match with the recorder on a loaded machine: a start-up race
     # of discovery, not a loss of the kill; test_recording_loop checks complete starts), …
