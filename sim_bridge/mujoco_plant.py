@@ -81,9 +81,11 @@ its own, stepped together on the world's clock: a robot's numbers never depend o
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -92,7 +94,13 @@ from lxml import etree
 from joint_space_control.arrays import per_joint
 from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.robots import RobotSpec, inertia_is_physical, urdf_facts
-from sim_bridge.torque_plant import GRAVITY, LOCK_FORCE, TorquePlant, TorqueWorld
+from sim_bridge.torque_plant import (
+    GRAVITY,
+    LOCK_FORCE,
+    PlantFaultError,
+    TorquePlant,
+    TorqueWorld,
+)
 
 #: solimp of the joint limits, the Coulomb friction and the brakes: the stiffest impedance
 #: MuJoCo allows (0.9999) at every violation; with the time constant of 2 dt (its smallest
@@ -102,10 +110,6 @@ STIFF_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 #: 1e10. It always comes first (positions and velocities only go bad by integrating one), so
 #: it is the one checked after every step (the three checks would double the step's overhead).
 BAD_ACCELERATION = mujoco.mjtWarning.mjWARN_BADQACC
-
-
-class PlantFaultError(RuntimeError):
-    """The simulation blew up; the reason, in one line, is the message."""
 
 
 class MujocoWorld(TorqueWorld):
@@ -120,11 +124,17 @@ class MujocoWorld(TorqueWorld):
         self.dt = 1.0 / physics_rate
         self.gui = False
         self.plants: list[MujocoPlant] = []
+        quiet_runtime_warnings()
+
+    engine = "mujoco"
 
     def step(self) -> None:
         """One physics step of every plant (PlantFaultError if one blows up)."""
         for plant in self.plants:
             plant.advance()
+
+    def load(self, spec: RobotSpec, joints: Sequence[str], **kwargs: Any) -> MujocoPlant:
+        return MujocoPlant(spec, joints, world=self, **kwargs)
 
     def close(self) -> None:
         self.plants.clear()
@@ -428,6 +438,19 @@ def place_base(
         mujoco.mju_mulQuat(combined, base, np.asarray(body.quat, dtype=float))
         body.pos = np.asarray(position, dtype=float) + rotated
         body.quat = combined
+
+
+#: What MuJoCo said while stepping, newest last (:func:`quiet_runtime_warnings`).
+RUNTIME_WARNINGS: deque[str] = deque(maxlen=16)
+
+
+def quiet_runtime_warnings() -> None:
+    """MuJoCo's warnings while stepping go to :data:`RUNTIME_WARNINGS` instead of stdout
+    and ./MUJOCO_LOG.TXT (a file in whatever directory the user started the node from).
+    The one that matters, a blown-up simulation, is the plant's :class:`PlantFaultError`,
+    said in one line by whoever steps it. The handler is the process's: set once."""
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(RUNTIME_WARNINGS.append)
 
 
 @contextmanager

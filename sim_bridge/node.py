@@ -1,4 +1,5 @@
-"""``sim_bridge``: the PyBullet plant as a ROS 2 node: one world, one or several robots.
+"""``sim_bridge``: the plant as a ROS 2 node: one world, one or several robots, on PyBullet
+(default) or MuJoCo (``engine``, :mod:`sim_bridge.engines`).
 
 Publishes ``joint_states`` (position, velocity, and the motor torque applied during the last
 step) and ``/clock``; applies effort commands from ``effort_command`` (JointState, joints by
@@ -84,6 +85,7 @@ from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.wire import clock_bytes
 from joint_space_control.throttle import ThrottledLog
 from sim_bridge import pacing
+from sim_bridge.engines import open_world
 from sim_bridge.ownership import ARRAY_COMMANDER
 from sim_bridge.parameters import (
     MODES,  # noqa: F401  (re-exported: the modes of the node)
@@ -95,8 +97,8 @@ from sim_bridge.parameters import (
     robot_names,
     robot_values,
 )
-from sim_bridge.plant import World
 from sim_bridge.robot import COUNTERS, SimRobot  # noqa: F401  (COUNTERS: re-exported)
+from sim_bridge.torque_plant import PlantFaultError
 from sim_bridge.view import frame_view
 
 #: How often [s] the graph is checked for an owner that left (and for another /clock).
@@ -152,7 +154,7 @@ class SimBridge(Node):
         self.lock = threading.Lock()  # world and time, shared with the realtime thread
         # what may recur at every tick or message: one line a second per kind (throttle.py)
         self.log = ThrottledLog(self.get_logger())
-        self.world = World(physics_rate, gui=bool(v["gui"]))
+        self.world = open_world(params.value(v, "engine"), physics_rate, gui=bool(v["gui"]))
         self.robots: list[SimRobot] = []
         try:
             for name in names or ("",):
@@ -182,6 +184,7 @@ class SimBridge(Node):
         self._stall_warned = 0.0  # when the stall was last reported (monotonic; 0: not yet)
         self._stall_said: tuple[str, ...] = ()  # what was named then
         self._paused = bool(v["start_paused"])
+        self._fault: str | None = None  # why the simulation stopped (blown up) until reset
         self._pause_at_ns = self._pause_time(v)
         self._running = True
         self._clock_said = False
@@ -311,6 +314,7 @@ class SimBridge(Node):
         realtime = self.mode == "realtime"
         values: dict[str, Any] = {
             "mode": self.mode,
+            "engine": self.world.engine,
             "sim_time_s": self._t_ns * 1e-9,
             "real_time_factor": summary["rate_hz"] * self._tick_sim_ns * 1e-9,
         }
@@ -334,6 +338,8 @@ class SimBridge(Node):
 
     def _alarm(self) -> str | None:
         alarms = [a for r in self.robots if (a := r.alarm(self.command_timeout))]
+        if self._fault is not None:
+            alarms.insert(0, self._fault)
         return "; ".join(alarms) or None
 
     # -- publishing --------------------------------------------------------------------
@@ -470,9 +476,24 @@ class SimBridge(Node):
         answers = [robot.answer for robot in self.robots]
         for robot in self.robots:
             robot.answer = None
-        self.world.step_torques(self._plants, answers, self.substeps, self._t_ns * 1e-9)
+        try:
+            self.world.step_torques(self._plants, answers, self.substeps, self._t_ns * 1e-9)
+        except PlantFaultError as err:
+            self._stop_on_fault(err)
+            return
         self._t_ns += self.period_ns
         self._publish_state()
+
+    def _stop_on_fault(self, err: PlantFaultError) -> None:
+        """The simulation blew up (lock held): stop where it is, say so once at ERROR and
+        on /diagnostics until ``~/reset`` starts it afresh (no state is published
+        meanwhile: there is none worth acting on)."""
+        self._fault = str(err)
+        self._paused = True
+        self._awaiting = None
+        for robot in self.robots:
+            robot.answer = None
+        self.get_logger().error(f"{err}; call ~/reset to start again")
 
     def _check_graph(self) -> None:
         """Free a plant whose owner left the graph; say once that another node publishes
@@ -563,7 +584,7 @@ class SimBridge(Node):
                 if ticking:
                     self._physics_step()
                     k += 1
-                    if k % self.substeps == 0:
+                    if k % self.substeps == 0 and not self._paused:
                         self._publish_state()
                 latency, self._latency_ns = self._latency_ns, -1
             end = time.perf_counter_ns()
@@ -581,7 +602,11 @@ class SimBridge(Node):
             robot.begin_tick(self._t_ns, self.command_timeout)
         for robot in self.robots:
             robot.apply(0, t)
-        self.world.step()
+        try:
+            self.world.step()
+        except PlantFaultError as err:
+            self._stop_on_fault(err)
+            return
         for robot in self.robots:
             robot.end_tick()
         self._t_ns += self.physics_dt_ns
@@ -591,6 +616,8 @@ class SimBridge(Node):
         with self.lock:
             for robot in self.robots:
                 robot.reset()
+            if self._fault is not None:  # the stop of a blown-up simulation ends here
+                self._fault, self._paused = None, False
             if self.mode == "lockstep" and not self._paused:
                 self._publish_state()
         response.success, response.message = True, "reset to the initial configuration"

@@ -17,6 +17,7 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from joint_space_control.control import parameters as params
+from sim_bridge.engines import DEFAULT_ENGINE, ENGINES
 from sim_bridge.wrench import PROFILES
 
 MODES = ("realtime", "lockstep")
@@ -26,6 +27,13 @@ NONNEGATIVE = {"minimum": 0.0}
 #: The world's parameters (one set for every robot in it).
 WORLD_PARAMETERS = params.REALTIME_PARAMETERS + (
     params.ParamSpec("mode", "realtime", "Plant timing", read_only=True, choices=MODES),
+    params.ParamSpec(
+        "engine",
+        DEFAULT_ENGINE,
+        "Physics engine of the plant (docs/plant.md, Engines)",
+        read_only=True,
+        choices=ENGINES,
+    ),
     params.ParamSpec(
         "physics_rate",
         1000.0,

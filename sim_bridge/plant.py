@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pybullet as pb
@@ -72,8 +73,13 @@ class World(TorqueWorld):
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=c)
         self._friction: set[int] = set()  # plants with Coulomb friction (ids)
 
+    engine = "pybullet"
+
     def step(self) -> None:
         pb.stepSimulation(physicsClientId=self.client)
+
+    def load(self, spec: RobotSpec, joints: Sequence[str], **kwargs: Any) -> Plant:
+        return Plant(spec, joints, world=self, **kwargs)
 
     def friction_solver(self, plant: Plant, on: bool) -> None:
         """Bullet's solver settings for Coulomb friction while any plant of the world has it

@@ -32,8 +32,8 @@ from joint_space_control.ros.messages import (
 )
 from joint_space_control.ros.wire import JointStateImage, JointStateReader
 from sim_bridge.ownership import ARRAY_COMMANDER, CommandOwnership
-from sim_bridge.plant import World
 from sim_bridge.robot_plant import RobotPlant
+from sim_bridge.torque_plant import TorqueWorld
 
 #: The safety counters of a robot (on /diagnostics; docs/safety.md).
 COUNTERS = (
@@ -47,7 +47,9 @@ COUNTERS = (
 class SimRobot:
     """A robot in the world; ``name`` is its namespace ("" : the node's, one robot)."""
 
-    def __init__(self, node: Node, name: str, values: params.ParamValues, world: World) -> None:
+    def __init__(
+        self, node: Node, name: str, values: params.ParamValues, world: TorqueWorld
+    ) -> None:
         self.node = node
         self.name = name
         prefix = f"{name}/" if name else ""

@@ -18,9 +18,8 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.control import parameters as params
-from sim_bridge.plant import Plant, World
 from sim_bridge.sensors import Encoder
-from sim_bridge.torque_plant import coulomb_bounds
+from sim_bridge.torque_plant import TorqueWorld, coulomb_bounds
 from sim_bridge.wrench import WrenchSchedule
 
 
@@ -36,14 +35,15 @@ def quaternion(rpy: np.ndarray) -> tuple[float, float, float, float]:
 
 
 class RobotPlant:
-    """The plant of one robot in ``world`` and its measurement; ``warn`` says what the
+    """The plant of one robot in ``world`` (of whichever engine: :mod:`sim_bridge.engines`)
+    and its measurement; ``warn`` says what the
     robot's values could not give as asked (a description's warnings, clipped initial
     positions); ``description`` reads the URDF of ``robot:=topic``."""
 
     def __init__(
         self,
         values: params.ParamValues,
-        world: World,
+        world: TorqueWorld,
         warn: Callable[[str], None] = lambda text: None,
         description: params.DescriptionSource | None = None,
     ) -> None:
@@ -55,7 +55,7 @@ class RobotPlant:
         self.spec = model.spec
         self.joints = model.joint_names
         n = self.n = len(self.joints)
-        self.plant = Plant(
+        self.plant = world.load(
             model.spec,
             self.joints,
             friction=params.value(values, "viscous_friction", n),
@@ -63,7 +63,6 @@ class RobotPlant:
             initial_positions=self._initial_positions(values, model),
             locked_positions=model.locked_positions,
             effort_limits=model.effort_limits,
-            world=world,
             base_position=params.value(values, "base_position"),
             base_orientation=quaternion(params.value(values, "base_rpy")),
         )

@@ -56,11 +56,32 @@ class PlantState:
     effort: np.ndarray  # motor torque applied during the last step [N·m]
 
 
+class PlantFaultError(RuntimeError):
+    """The simulation blew up (a non-finite or huge acceleration): the reason, in one line,
+    is the message. The plant stays as it blew up until it is reset."""
+
+
 class TorqueWorld:
-    """The clock of the plants in one world: an engine's world gives :meth:`step`."""
+    """The clock of the plants in one world: an engine's world gives :meth:`step`,
+    :meth:`load` and :meth:`close`."""
+
+    #: The engine's name (:data:`sim_bridge.engines.ENGINES`).
+    engine = ""
+    dt: float
+    gui: bool
 
     def step(self) -> None:
-        """One physics step of every plant of the world."""
+        """One physics step of every plant of the world (PlantFaultError when the engine
+        finds the simulation blown up)."""
+        raise NotImplementedError
+
+    def load(self, spec: Any, joints: Sequence[str], **kwargs: Any) -> TorquePlant:
+        """A robot loaded into this world: the engine's plant, its arguments as
+        :class:`sim_bridge.plant.Plant`'s (``physics_rate``, ``gui`` and ``world`` are the
+        world's)."""
+        raise NotImplementedError
+
+    def close(self) -> None:
         raise NotImplementedError
 
     def step_torques(

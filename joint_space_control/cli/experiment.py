@@ -11,6 +11,7 @@ from pathlib import Path
 
 from joint_space_control.experiments.scenarios import format as scenarios
 from joint_space_control.experiments.scenarios.params_file import with_params_file
+from sim_bridge.engines import ENGINES
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -50,6 +51,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "graph (lockstep only; the same metrics and check texts, much faster)",
     )
     p.add_argument(
+        "--plant-engine",
+        default="pybullet",
+        metavar="ENGINE[,ENGINE]",
+        help="the plant's physics engine: pybullet (default) or mujoco, or both, comma "
+        "separated: every scenario on each (outputs in OUT/<engine>/, and the results page "
+        "gets a table of each check's figures engine by engine)",
+    )
+    p.add_argument(
         "--report", type=Path, default=None, help="also write DIR/results.md (e.g. docs/)"
     )
     p.add_argument(
@@ -75,6 +84,7 @@ def _handle(args: argparse.Namespace) -> int:
         args.scheduler,
         args.params_file,
         args.engine,
+        args.plant_engine,
     )
 
 
@@ -104,6 +114,7 @@ def run(
     scheduler: str | None = None,
     params_file: Path | None = None,
     engine: str = "ros",
+    plant_engine: str = "pybullet",
 ) -> int:
     """Run the scenarios, all on one pool (:class:`RunPool`: ``scheduler`` None, a
     LocalCluster of ``jobs`` workers; an address; or ``"threads"``). Ctrl-C cancels the
@@ -130,6 +141,13 @@ def run(
             loaded = [with_params_file(s, params_file) for s in loaded]
     except ValueError as err:
         return error(str(err))
+    plant_engines = [e.strip() for e in plant_engine.split(",") if e.strip()]
+    unknown = [e for e in plant_engines if e not in ENGINES]
+    if unknown or not plant_engines or len(set(plant_engines)) != len(plant_engines):
+        return error(
+            f"--plant-engine must name engines of {', '.join(ENGINES)}, each once; got "
+            f"{plant_engine!r}"
+        )
     out = out.absolute()  # the path the workers are given
 
     def log(message: str) -> None:
@@ -142,20 +160,30 @@ def run(
     except KeyboardInterrupt:
         print("\njsc experiment: interrupted", file=sys.stderr)
         return 130
-    results: list[ExperimentResult] = []
+    by_engine: dict[str, list[ExperimentResult]] = {e: [] for e in plant_engines}
+    # one engine: as always; several: each scenario on each, in OUT/<engine>/
+    runs = [
+        (e, scenario.on_engine(e), out / e if len(plant_engines) > 1 else out)
+        for scenario in loaded
+        for e in plant_engines
+    ]
     started = time.monotonic()
     try:
-        print(f"runs on: {pool.description}, engine {engine}", flush=True)
+        print(
+            f"runs on: {pool.description}, engine {engine}, plant {', '.join(plant_engines)}",
+            flush=True,
+        )
         out.mkdir(parents=True, exist_ok=True)
         if missing := pool.missing(out):
             return error(
                 f"--out {out} is not a directory on the workers {', '.join(missing)}: give "
                 "one on a file system every worker mounts at the same path"
             )
-        for k, scenario in enumerate(loaded):
-            print(f"{_bar(k, len(loaded))} {scenario.name}: {scenario.title}", flush=True)
-            result = run_experiment(scenario, out, short, pool, log, engine)
-            results.append(result)
+        for k, (plant, scenario, where) in enumerate(runs):
+            on = f" [{plant}]" if len(plant_engines) > 1 else ""
+            print(f"{_bar(k, len(runs))} {scenario.name}{on}: {scenario.title}", flush=True)
+            result = run_experiment(scenario, where, short, pool, log, engine)
+            by_engine[plant].append(result)
             verdict = {True: "agrees with the theory", False: "FAILED", None: "ran"}[result.passed]
             print(f"  -> {verdict}: {result.out / 'summary.md'}", flush=True)
             for o in result.outcomes:
@@ -177,14 +205,22 @@ def run(
         return 130
     finally:
         pool.close()
-    print(f"{_bar(len(loaded), len(loaded))} done in {time.monotonic() - started:.0f} s")
+    print(f"{_bar(len(runs), len(runs))} done in {time.monotonic() - started:.0f} s")
+    results = by_engine[plant_engines[0]]
     if report is not None:
-        page = results_page(results, report, short)
+        engines = by_engine if len(plant_engines) > 1 else None
+        page = results_page(results, report, short, engines)
         print(f"results page: {page}")
+    every = [(e, r) for e, rs in by_engine.items() for r in rs]
+    named = (
+        (lambda e, r: f"{r.scenario.name} [{e}]")
+        if len(by_engine) > 1
+        else (lambda e, r: r.scenario.name)
+    )
     if short:  # cut runs cannot be judged against the theory: only broken runs fail
-        failed = [r.scenario.name for r in results if r.errors]
+        failed = [named(e, r) for e, r in every if r.errors]
     else:
-        failed = [r.scenario.name for r in results if r.passed is False]
+        failed = [named(e, r) for e, r in every if r.passed is False]
     if failed:
         print(f"jsc experiment: {len(failed)} failed: {', '.join(failed)}", file=sys.stderr)
         return 1

@@ -4,10 +4,10 @@ The ROS engine (:class:`~joint_space_control.experiments.harness.loop.ClosedLoop
 ``sim_bridge``, a controller per robot and the recorder as processes and lets them talk over
 DDS. This engine runs the same objects on the same numbers without a ROS graph:
 
-- the world is sim_bridge's: one :class:`~sim_bridge.plant.World`, each robot a
-  :class:`~sim_bridge.robot_plant.RobotPlant` built from the same parameter values
-  (:mod:`sim_bridge.parameters`), measured once per instant, stepped by the same
-  :meth:`~sim_bridge.plant.World.step_torques`;
+- the world is sim_bridge's: one world of the ``engine`` its parameters name (PyBullet or
+  MuJoCo, :mod:`sim_bridge.engines`), each robot a :class:`~sim_bridge.robot_plant.RobotPlant`
+  built from the same parameter values (:mod:`sim_bridge.parameters`), measured once per
+  instant, stepped by the same :meth:`~sim_bridge.torque_plant.TorqueWorld.step_torques`;
 - each controller is the object its node steps, built from the node's parameter values by
   :mod:`joint_space_control.control.configure`, answering every state as the node does with
   ``trigger: state`` (a held command inside a control period, the gains designed at the
@@ -27,7 +27,8 @@ DDS. This engine runs the same objects on the same numbers without a ROS graph:
 What cannot run here, and is refused in one line: the realtime mode (it is a run against the
 wall clock; use the ROS engine), and a run where the lockstep plant would wait for ever (a
 controller that sends no command: a non-finite torque, a state without the velocity it
-must measure) ends with that reason instead.
+must measure) ends with that reason instead, as does a simulation that blew up (the plant's
+fault, where sim_bridge stops until ``~/reset``).
 """
 
 from __future__ import annotations
@@ -63,6 +64,7 @@ from joint_space_control.ros.wire import (
     clock_bytes,
     fill_images,
 )
+from sim_bridge.engines import open_world
 from sim_bridge.parameters import (
     PARAMETERS as PLANT_PARAMETERS,
 )
@@ -74,8 +76,8 @@ from sim_bridge.parameters import (
     robot_names,
     robot_values,
 )
-from sim_bridge.plant import World
 from sim_bridge.robot_plant import RobotPlant
+from sim_bridge.torque_plant import PlantFaultError
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 STATE = "std_msgs/msg/Float64MultiArray"
@@ -263,7 +265,10 @@ class InProcessLoop:
         self.period_ns = self.substeps * physics_dt_ns
         self.t_ns = 0
         self.warnings: list[str] = []
-        self.world = World(params.value(self.plant_values, "physics_rate"))
+        self.world = open_world(
+            params.value(self.plant_values, "engine"),
+            params.value(self.plant_values, "physics_rate"),
+        )
         self.bag: BagWriter | None = None
         #: Every robot's published states, by namespace: (stamp [ns], q, q̇, τ measured).
         self.states: dict[str, list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]] = {
@@ -325,7 +330,12 @@ class InProcessLoop:
                 self._answers = self._publish_and_answer()
             if self.t_ns >= target:
                 return
-            self.world.step_torques(self.plants, self._answers, self.substeps, self.t_ns * 1e-9)
+            try:
+                self.world.step_torques(
+                    self.plants, self._answers, self.substeps, self.t_ns * 1e-9
+                )
+            except PlantFaultError as err:
+                raise EngineError(str(err)) from None
             self.t_ns += self.period_ns
             self._answers = None
 

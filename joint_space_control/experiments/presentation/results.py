@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from joint_space_control.analysis.report import write_metrics
+from joint_space_control.experiments.presentation.engines import engine_table
 from joint_space_control.json_values import jsonable
 
 if TYPE_CHECKING:
@@ -163,8 +164,14 @@ def tuning_section(docs: Path) -> list[str]:
     ]
 
 
-def results_page(results: list[ExperimentResult], docs: Path, short: bool) -> Path:
-    """``docs/results.md``: every experiment's answer with its numbers and plots."""
+def results_page(
+    results: list[ExperimentResult],
+    docs: Path,
+    short: bool,
+    by_engine: dict[str, list[ExperimentResult]] | None = None,
+) -> Path:
+    """``docs/results.md``: every experiment's answer with its numbers and plots (and,
+    given ``by_engine``, the table of each check on each plant engine)."""
     docs.mkdir(parents=True, exist_ok=True)
     figures = docs / "figures"
     lines = [
@@ -195,6 +202,8 @@ def results_page(results: list[ExperimentResult], docs: Path, short: bool) -> Pa
             lines += [heading, ""]
         for result in chosen:
             lines.append(summary_markdown(result, docs, figures))
+    if by_engine:
+        lines += engine_table(by_engine)
     lines += tuning_section(docs)
     path = docs / "results.md"
     path.write_text("\n".join(lines))

@@ -311,6 +311,11 @@ class Scenario:
             }
         )
 
+    def on_engine(self, engine: str) -> Scenario:
+        """The scenario with its plant on the physics engine ``engine`` (sim_bridge's
+        ``engine``, a world parameter: one robot's plant or a world's)."""
+        return Scenario(**{**self.__dict__, "plant": {**self.plant, "engine": engine}})
+
     def run_duration(self, short: bool) -> float:
         return self.short_duration if short else self.duration
 
