@@ -36,7 +36,12 @@ LAWS = {
         "inverse_dynamics_controller",
         {"law": "inverse_dynamics", "omega_n": 10.0, "zeta": 0.6},
     ),
+    # the second engine (issue 26): sim_bridge engine:=mujoco over ROS is the in-process
+    # engine's MuJoCo world, to the last bit
+    "pd_gravity_on_mujoco": ("panda", "pd_gravity_controller", {}),
 }
+#: The plant's engine of a case (the others: sim_bridge's default, PyBullet).
+ENGINE = {"pd_gravity_on_mujoco": "mujoco"}
 DURATION = 1.5
 
 
@@ -48,6 +53,8 @@ def test_ros_and_in_process_engines_record_the_same_loop(tmp_path, law):
     q0, target = step_inside_limits(model)
     params = {**robot.params(), **law_params}
     sim = {**robot.params(), "initial_positions": q0.tolist(), "pause_at": DURATION}
+    if law in ENGINE:
+        sim["engine"] = ENGINE[law]
     joints, reference = list(model.joint_names), [target.tolist()]
 
     ros_bag = tmp_path / "ros"

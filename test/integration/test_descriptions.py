@@ -63,6 +63,32 @@ def test_unusable_descriptions_exit_2_with_one_line(tmp_path, executable):
             assert match in line, (kind, line)
 
 
+def test_what_the_mujoco_plant_cannot_do_is_refused_in_one_line(tmp_path):
+    """engine:=mujoco (issue 26): a GUI, a description with inertias MuJoCo would have to
+    balance (xarm6 of pybullet_data, which PyBullet takes with a warning) and an unknown
+    engine each stop sim_bridge at start with one line and exit code 2."""
+    iiwa = {"robot": "iiwa", "mode": "lockstep"}
+    cases = {
+        "gui": ({**iiwa, "engine": "mujoco", "gui": True}, "the MuJoCo plant has no viewer"),
+        "unphysical": (
+            {**BY_NAME["xarm6"].params(), "engine": "mujoco"},
+            "have inertias that are not physical",
+        ),
+        "unknown": ({**iiwa, "engine": "bullet"}, "engine"),
+    }
+    with ProcessGroup(tmp_path / "runs", next_domain_id()) as group:
+        nodes = {
+            kind: (group.start("sim_bridge", params, name=f"sim_bridge_{kind}"), match)
+            for kind, (params, match) in cases.items()
+        }
+        for kind, (node, match) in nodes.items():
+            assert node.proc.wait(timeout=60) == 2, (kind, node.log())
+            log = node.log()
+            assert "Traceback" not in log, (kind, log)
+            (line,) = error_lines(log)
+            assert match in line, (kind, line)
+
+
 def test_robot_topic_reads_the_latched_description(tmp_path):
     robot = BY_NAME["ur5"]
     domain = next_domain_id()

@@ -23,6 +23,7 @@ from joint_space_control.experiments.harness.processes import ProcessGroup, isol
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.ros.messages import ns_to_stamp, stamp_to_ns
+from test.corpus import BY_NAME, PACKAGE_PATHS
 
 from .conftest import GAINS, JOINTS, next_domain_id
 
@@ -456,3 +457,47 @@ def test_runs_stay_inside_their_domain(rig, tmp_path):
         assert other.recording.stamps == []
     finally:
         other.close()
+
+
+def test_a_blown_up_mujoco_simulation_stops_with_one_line_until_reset(rig):
+    """engine:=mujoco (issue 26): MuJoCo would restart a blown-up simulation from q = 0 with
+    only a printed warning. Here: the SO-101 of example-robot-data with its effort limits
+    raised to 1e6 N·m and reject_factor as loose as it goes; a valid 1e6 N·m on its gripper
+    joint ((B⁻¹)₁₁ = 7.3e4: q̈ ~ 7e10, beyond MuJoCo's 1e10) blows it up in its first step;
+    sim_bridge says so in one ERROR line, publishes nothing more, reports the fault on
+    /diagnostics, and ~/reset starts it again from the initial configuration."""
+    so101 = BY_NAME["so101"]
+    model = RobotModel(resolve_robot(urdf_path=str(so101.path), package_paths=PACKAGE_PATHS))
+    assert model.joint_names[0] == "gripper"
+    n = model.n
+    rig.group.start(
+        "sim_bridge",
+        {
+            **so101.params(),
+            "mode": "lockstep",
+            "engine": "mujoco",
+            "effort_limits": [1e6],
+            "reject_factor": 100.0,
+        },
+    )
+    arrays = rig.publisher(Float64MultiArray, "/sim_bridge/commands")
+    probe = rig.probe
+    probe.run_until(0.0, 20.0, rig.group.check_alive)
+    rig.send(arrays, Float64MultiArray(data=[1e6] + [0.0] * (n - 1)))
+    status = rig.diagnostics("sim_bridge", lambda s: "blew up" in str(s["message"]))
+    assert status["level"] == 2  # ERROR
+    rig.send(arrays, Float64MultiArray(data=[0.0] * n))  # nothing steps a stopped plant
+    probe.spin_for(0.5)
+    assert probe.latest_time() == 0.0
+    log = rig.group.nodes["sim_bridge"].log()
+    lines = [line for line in log.splitlines() if "blew up" in line]
+    assert len(lines) == 1 and "at joint 'gripper'" in lines[0], lines
+    assert "Traceback" not in log and "Nan, Inf or huge" not in log  # MuJoCo's own: not printed
+
+    probe.trigger("/sim_bridge/reset", rig.group.check_alive)
+    rig.send(arrays, Float64MultiArray(data=[0.0] * n))
+    probe.run_until(0.001, 20.0, rig.group.check_alive)
+    _, q, _, _ = probe.recording.arrays()
+    # one step of gravity from the initial configuration, not the blown-up state (1e4 rad)
+    assert np.all(np.isfinite(q[-1])) and np.max(np.abs(q[-1] - q[0])) < 0.05
+    rig.diagnostics("sim_bridge", lambda s: "blew up" not in str(s["message"]))

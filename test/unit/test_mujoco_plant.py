@@ -312,7 +312,7 @@ def test_a_blown_up_run_is_a_fault_not_a_silent_restart(models, tmp_path, monkey
     on a wrist of 1e-3 kg·m²: K_D dt / B = 40) blows up in 4 ms; MuJoCo would restart it from
     q = 0 and go on. Here: one line, and the state stays as it blew up until a reset. (With
     the URDF's 300 N·m clamp the same gains only chatter: the clamp bounds each step.)"""
-    monkeypatch.chdir(tmp_path)  # MuJoCo's own warning goes to ./MUJOCO_LOG.TXT
+    monkeypatch.chdir(tmp_path)  # where MuJoCo would write its own warning: MUJOCO_LOG.TXT
     model = models["iiwa"]
     q_d = SETPOINTS["iiwa"]
     plant = MujocoPlant(model.spec, model.joint_names, effort_limits=np.inf)
@@ -322,6 +322,7 @@ def test_a_blown_up_run_is_a_fault_not_a_silent_restart(models, tmp_path, monkey
                 s = plant.state()
                 plant.step(300.0 * (q_d - s.q) - 40.0 * s.dq)
         assert "\n" not in str(info.value) and "at joint 'lbr_iiwa_joint_" in str(info.value)
+        assert not (tmp_path / "MUJOCO_LOG.TXT").exists()  # said once, by the fault only
         after = plant.state()
         assert np.max(np.abs(after.q)) > 10.0  # not restarted at q = 0
         with pytest.raises(PlantFaultError):
