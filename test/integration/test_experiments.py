@@ -108,6 +108,50 @@ def test_two_robots_in_one_world_are_each_analysed_and_checked(tmp_path):
     assert all((docs / link).is_file() for link in links)
 
 
+#: §5's and §4's checks on a real plant, each engine: the pure-PD offset, PD + g at its
+#: set-point, the disturbance offsets, the inverse-dynamics step (second order).
+ON_BOTH_ENGINES = [
+    "q1_pd_gravity_setpoint",
+    "q2_pd_without_gravity",
+    "q6_inverse_dynamics_nominal",
+    "disturbance",
+]
+
+
+def test_the_theory_holds_on_both_plant_engines_and_the_page_compares_them(tmp_path):
+    """`--plant-engine pybullet,mujoco` (issue 26): every scenario's full run on each engine,
+    judged by the same checks to the same tolerances (all agree), in OUT/<engine>/, and the
+    results page's engine-by-engine table: a row per check, and the engines' largest
+    position difference, which on these frictionless plants is rounding (the same scheme,
+    the same model: 1e-9 rad bounds it with room; ~1e-15 seen)."""
+    docs = tmp_path / "docs"
+    result = jsc(
+        *ON_BOTH_ENGINES, "--out", str(tmp_path), "--report", str(docs),
+        "--engine", "inprocess", "--plant-engine", "pybullet,mujoco",
+        "--scheduler", "threads", "--jobs", "2", timeout=300,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "plant pybullet, mujoco" in result.stdout
+    checks = {}
+    for engine in ("pybullet", "mujoco"):
+        for name in ON_BOTH_ENGINES:
+            verdict = json.loads((tmp_path / engine / name / "result.json").read_text())
+            assert verdict["passed"] is True and verdict["errors"] == [], (engine, name)
+            checks[engine, name] = [c["check"] for c in verdict["checks"]]
+    for name in ON_BOTH_ENGINES:
+        assert checks["pybullet", name] == checks["mujoco", name] != []
+    page = (docs / "results.md").read_text()
+    table = page[page.index("## Engine by engine") :].split("\n\n")[2].splitlines()
+    assert table[0] == "| Experiment | PyBullet | MuJoCo | max \\|q_MuJoCo − q_PyBullet\\| |"
+    rows = [row for row in table[2:] if row.startswith("| Q")]
+    assert len(rows) == len(ON_BOTH_ENGINES)
+    assert len(table) - 2 == sum(len(c) for (e, _), c in checks.items() if e == "mujoco")
+    for row in rows:
+        apart = float(row.rstrip(" |").rsplit("|", 1)[1])
+        assert apart < 1e-9, row
+    assert result.stdout.count("DISAGREES") == 0
+
+
 def _chunks(parts: int = 3) -> list[list[str]]:
     """The installed scenarios in ``parts`` chunks of about equal size (one jsc call each:
     the chunks spread over the test workers and stay within the per-test timeout)."""

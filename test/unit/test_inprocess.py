@@ -1,5 +1,6 @@
 """The closed loop against the theory on the in-process engine (THEORY.md §2, §3): the same
-plant, controller objects and sub-step loop as the nodes' lockstep, without processes.
+plant, controller objects and sub-step loop as the nodes' lockstep, without processes; every
+test on both physics engines of the plant (PyBullet and MuJoCo).
 
 These were integration tests of node processes; the ROS engine gives the same numbers bit
 for bit (test/integration/test_experiments.py compares every scenario on both engines), so
@@ -28,6 +29,7 @@ from joint_space_control.experiments.execution.inprocess import EngineError, InP
 from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
+from sim_bridge.engines import ENGINES
 from test.corpus import BY_NAME, PACKAGE_PATHS
 from test.loops import GAINS, ID_CASES, SETPOINTS
 from test.unit.test_corpus import step_inside_limits
@@ -37,9 +39,11 @@ CONTROLLER = "inverse_dynamics_controller"
 CASES = ID_CASES
 
 
-@pytest.fixture
-def make_loop():
-    """Factory of in-process loops of one robot, all closed at the end."""
+@pytest.fixture(params=ENGINES)
+def make_loop(request):
+    """Factory of in-process loops of one robot, all closed at the end: every test that
+    makes one runs on each physics engine of the plant (issue 26: the theory on both, to
+    the same tolerances)."""
     loops: list[InProcessLoop] = []
 
     def make(
@@ -50,7 +54,7 @@ def make_loop():
         record: Path | None = None,
     ) -> InProcessLoop:
         setup = RobotSetup("", robot, {}, controller, dict(params or {}), {})
-        loop = InProcessLoop([setup], sim or {}, record)
+        loop = InProcessLoop([setup], {"engine": request.param, **(sim or {})}, record)
         loops.append(loop)
         return loop
 
