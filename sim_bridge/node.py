@@ -99,7 +99,6 @@ from sim_bridge.parameters import (
 )
 from sim_bridge.robot import COUNTERS, SimRobot  # noqa: F401  (COUNTERS: re-exported)
 from sim_bridge.torque_plant import PlantFaultError
-from sim_bridge.view import frame_view
 
 #: How often [s] the graph is checked for an owner that left (and for another /clock).
 OWNER_CHECK = 0.25
@@ -163,7 +162,9 @@ class SimBridge(Node):
             self.world.close()
             raise
         self._plants = [robot.plant for robot in self.robots]
-        if self.world.gui:  # every robot as it starts, no panels
+        if self.world.gui:  # every robot as it starts, no panels (PyBullet's window)
+            from sim_bridge.view import frame_view
+
             bodies = [robot.plant.body for robot in self.robots]
             if len(bodies) == 1:
                 frame_view(self.world.client, bodies)
@@ -255,7 +256,8 @@ class SimBridge(Node):
             for r in self.robots
         )
         self.get_logger().info(
-            f"sim_bridge: {robots}, {self.mode}, physics {physics_rate:g} Hz, publish "
+            f"sim_bridge: {robots}, {self.mode} on {self.world.engine}, physics "
+            f"{physics_rate:g} Hz, publish "
             f"{publish_rate:g} Hz" + (", paused" if self._paused else "")
         )
 

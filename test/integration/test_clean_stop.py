@@ -47,7 +47,7 @@ def test_realtime_sim_bridge_stops_without_traceback_with_a_clock_subscriber(tmp
                 with ProcessGroup(tmp_path / f"{k}_{sig.name}", domain) as group:
                     sim = group.start("sim_bridge", {"mode": "realtime"})
                     deadline = time.monotonic() + 60
-                    while "realtime, physics" not in sim.log():
+                    while "realtime on pybullet, physics" not in sim.log():
                         group.check_alive()
                         assert time.monotonic() < deadline, sim.log()
                         time.sleep(0.1)

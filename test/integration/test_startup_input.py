@@ -41,7 +41,7 @@ def test_a_parameter_the_node_does_not_have_is_named_in_one_warning(tmp_path):
     with ProcessGroup(tmp_path, next_domain_id()) as group:
         node = group.start("sim_bridge", {"physics_rat": 500.0, "viscous_friction": 0.1})
         deadline = time.monotonic() + 60
-        while "realtime, physics" not in node.log():
+        while "realtime on pybullet, physics" not in node.log():
             group.check_alive()
             assert time.monotonic() < deadline, node.log()
             time.sleep(0.1)
