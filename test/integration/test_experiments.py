@@ -109,12 +109,14 @@ def test_two_robots_in_one_world_are_each_analysed_and_checked(tmp_path):
 
 
 #: §5's and §4's checks on a real plant, each engine: the pure-PD offset, PD + g at its
-#: set-point, the disturbance offsets, the inverse-dynamics step (second order).
+#: set-point, the disturbance offsets, the inverse-dynamics step (second order), and two
+#: robots in one world.
 ON_BOTH_ENGINES = [
     "q1_pd_gravity_setpoint",
     "q2_pd_without_gravity",
     "q6_inverse_dynamics_nominal",
     "disturbance",
+    "two_robots",
 ]
 
 
@@ -192,6 +194,31 @@ def test_every_scenario_runs_in_its_short_form_and_both_engines_agree(tmp_path, 
     assert "engine inprocess" in result.stdout
     for name in names:
         assert compare_experiments(ros / name, local / name) == [], name
+
+
+@pytest.mark.long  # about a minute and a half: make test-long
+@pytest.mark.timeout(900)
+def test_every_scenario_runs_on_mujoco_as_on_pybullet(tmp_path):
+    """Every installed scenario (every imperfection, sweep and world of several robots) in
+    its short form on the MuJoCo plant and on PyBullet's, in process: no run fails on
+    either, and every check of one is a check of the other with the same verdict, except
+    where the engines' constraints differ (Coulomb friction, stiction, brakes: MuJoCo's are
+    soft, docs/plant.md Engines), whose texts are compared but not required equal."""
+    result = jsc(
+        *available(), "--short", "--out", str(tmp_path), "--engine", "inprocess",
+        "--plant-engine", "pybullet,mujoco", "--scheduler", "threads", "--jobs", "2",
+        timeout=900,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-4000:]
+    for name in available():
+        verdicts = {
+            e: json.loads((tmp_path / e / name / "result.json").read_text())
+            for e in ("pybullet", "mujoco")
+        }
+        for engine, verdict in verdicts.items():
+            assert verdict["errors"] == [], (engine, name, verdict["errors"])
+        checks = {e: [(c["check"], c["passed"]) for c in v["checks"]] for e, v in verdicts.items()}
+        assert checks["mujoco"] == checks["pybullet"], name
 
 
 def test_ctrl_c_stops_every_node_of_a_running_experiment(tmp_path):

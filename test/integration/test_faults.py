@@ -273,16 +273,20 @@ def test_plant_rejects_bad_commands_and_parameters_and_limits_the_torque(rig):
 
 
 @pytest.mark.realtime
-def test_killed_controller_brakes_the_plant_and_a_new_one_takes_over_bumplessly(rig):
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_killed_controller_brakes_the_plant_and_a_new_one_takes_over_bumplessly(rig, engine):
     """Realtime: SIGKILL the controller → within command_timeout (simulation time) the plant
     brakes and says so; a new controller starts from the measured configuration, its first
-    torque is the braking torque (both carry gravity) and the arm does not move."""
+    torque is the braking torque (both carry gravity) and the arm does not move. On both
+    engines: MuJoCo's brakes are its dry friction at the effort limits, the torque they
+    exert its constraint forces."""
     timeout = 0.1
     controller = {"robot": ROBOT, "trigger": "state", **GAINS[ROBOT]}
     rig.group.start(
         "sim_bridge",
         {
             "robot": ROBOT,
+            "engine": engine,
             "mode": "realtime",
             "command_timeout": timeout,
             "initial_positions": [0.3, -0.2],
