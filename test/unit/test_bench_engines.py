@@ -181,8 +181,8 @@ def test_table_lines_of_both_engines():
     lines = format_table(_result()).splitlines()
     top = lines.index(next(line for line in lines if line.startswith("physics step")))
     assert "the median of 1 rounds' mean of 100 steps" in lines[top]
-    assert lines[top + 2].split() == ["iiwa", "7", "8.0", "6.0", "0.75", "16.0", "/", "12.0"]
-    assert lines[top + 3].split() == ["ur5", "7", "10.0", "5.0", "0.50", "20.0", "/", "10.0"]
+    assert lines[top + 2].split() == ["iiwa", "7", "8.0", "6.0", "0.75", "8.0", "/", "6.0"]
+    assert lines[top + 3].split() == ["ur5", "7", "10.0", "5.0", "0.50", "10.0", "/", "5.0"]
     assert lines[top + 4] == "  left out: ur10: not here"
 
     start = lines.index(next(line for line in lines if "engine:=mujoco against" in line))
