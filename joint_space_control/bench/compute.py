@@ -1,5 +1,6 @@
-"""Benchmarks without ROS: the control laws per tick, the Pinocchio calls they make, and the
-closed loop of plant + law in one process (the ceiling for the loop over ROS)."""
+"""Benchmarks without ROS: the control laws per tick, the Pinocchio calls they make, the
+closed loop of plant + law in one process (the ceiling for the loop over ROS), and one
+physics step of the plant on each engine."""
 
 from __future__ import annotations
 
@@ -10,10 +11,11 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from joint_space_control.control import parameters as params
 from joint_space_control.control.configure import controller_kind
 from joint_space_control.control.controller import Controller
 from joint_space_control.model.dynamics import RobotModel
-from joint_space_control.model.robots import resolve_robot
+from joint_space_control.model.robots import example_robot_data_share, resolve_robot
 
 #: The laws benchmarked, by the controller that runs them.
 LAWS = {
@@ -28,6 +30,13 @@ BENCH_PARAMETERS = {
     "pd_gravity": {"kp": 100.0, "kd": 20.0},
     "inverse_dynamics": {"omega_n": 20.0, "zeta": 1.0},
 }
+
+
+#: The robots of the physics-step rows: the built-in ones, and the arms of example-robot-data
+#: (PyPI) in :data:`EXAMPLE_ROBOT_DATA` when it is installed.
+PHYSICS_ROBOTS = ("planar_2dof", "iiwa", "panda", "ur5")
+#: Arms of example-robot-data, by their file under its ``robots/`` folder.
+EXAMPLE_ROBOT_DATA = {"ur5": "ur_description/urdf/ur5_robot.urdf"}
 
 
 def make_controller(model: RobotModel, law: str) -> Controller:
@@ -185,3 +194,113 @@ def pacing_floor(
         "on_time_fraction": float(np.mean(late <= late_us)),
         "too_late_fraction": float(np.mean(late > too_late_us)),
     }
+
+
+def robot_parameters(robot: str) -> dict[str, Any] | None:
+    """The node parameters that load ``robot``: a built-in name, or an arm of
+    :data:`EXAMPLE_ROBOT_DATA` (None when example-robot-data is not installed)."""
+    if robot not in EXAMPLE_ROBOT_DATA:
+        return {"robot": robot}
+    share = example_robot_data_share()
+    if share is None:
+        return None
+    urdf = share / "example-robot-data" / "robots" / EXAMPLE_ROBOT_DATA[robot]
+    return {"urdf_path": str(urdf), "package_paths": [str(share)]}
+
+
+def engine_missing(engine: str) -> str | None:
+    """Why a world of ``engine`` cannot open here (MuJoCo not installed, say); None when it
+    can."""
+    from sim_bridge.engines import open_world
+
+    try:
+        open_world(engine, 1000.0).close()
+    except ValueError as err:
+        return str(err)
+    return None
+
+
+def physics_steps(
+    robots: Sequence[str], engines: Sequence[str], steps: int, repeats: int
+) -> dict[str, Any]:
+    """Wall time of one physics step of each robot's plant on each engine, in process:
+    sim_bridge's plant built from its default parameter values as sim_bridge builds it
+    (:class:`~sim_bridge.robot_plant.RobotPlant`; 1 kHz, no friction), each step
+    ``plant.step(g(q))``, one sub-step under gravity compensation (Pinocchio's g at the
+    state read before it, outside the timing), so the arm stays where it starts.
+
+    ``repeats`` rounds, each running ``steps`` steps of every (robot, engine) in turn from
+    its initial configuration at rest: ``us_per_step`` is the median over the rounds of the
+    mean step [µs], so the engines of a robot are measured seconds apart on a drifting
+    machine. A robot or engine that is not installed, or a description an engine refuses,
+    is left out with the reason under ``skipped``."""
+    from sim_bridge.engines import open_world
+    from sim_bridge.parameters import PARAMETERS, robot_values
+    from sim_bridge.robot_plant import RobotPlant
+
+    skipped: list[str] = []
+    runnable = []
+    for engine in engines:
+        why = engine_missing(engine)
+        if why is None:
+            runnable.append(engine)
+        else:
+            skipped.append(f"{engine}: {why}")
+    plants: dict[tuple[str, str], RobotPlant] = {}
+    worlds = []
+    try:
+        for robot in robots:
+            given = robot_parameters(robot)
+            if given is None:
+                skipped.append(f"{robot}: example-robot-data is not installed")
+                continue
+            for engine in runnable:
+                values = params.defaults(PARAMETERS, **given, engine=engine)
+                world = open_world(engine, params.value(values, "physics_rate"))
+                worlds.append(world)
+                try:
+                    plants[robot, engine] = RobotPlant(robot_values(values, ""), world)
+                except ValueError as err:  # a description this engine cannot simulate
+                    skipped.append(f"{robot} on {engine}: {err}")
+        for plant in plants.values():
+            _gravity_steps(plant, 10)  # first-call set-up
+        times: dict[tuple[str, str], list[np.ndarray]] = {key: [] for key in plants}
+        for _ in range(max(1, repeats)):
+            for key, plant in plants.items():
+                plant.reset()
+                times[key].append(_gravity_steps(plant, steps))
+    finally:
+        for world in worlds:
+            world.close()
+    rows = []
+    for (robot, engine), each in times.items():
+        means = [float(t.mean()) * 1e-3 for t in each]
+        rows.append(
+            {
+                "robot": robot,
+                "engine": engine,
+                "joints": plants[robot, engine].n,
+                "steps": steps,
+                "repeats": len(each),
+                "us_per_step": float(np.median(means)),
+                "us_per_step_repeats": means,
+                "per_step": percentiles_us(np.concatenate(each)),
+            }
+        )
+    return {"rows": rows, "skipped": skipped}
+
+
+def _gravity_steps(robot: Any, steps: int) -> np.ndarray:
+    """Wall time [ns] of each of ``steps`` physics steps of ``robot`` (a RobotPlant) under
+    gravity compensation, τ = g(q) of the true state before the step."""
+    plant, model = robot.plant, robot.model
+    q, dq, effort = np.zeros(robot.n), np.zeros(robot.n), np.zeros(robot.n)
+    clock = time.perf_counter_ns
+    out = np.empty(steps, dtype=np.int64)
+    for k in range(steps):
+        plant.read_state(q, dq, effort)
+        tau = model.gravity(q)
+        t0 = clock()
+        plant.step(tau)
+        out[k] = clock() - t0
+    return out

@@ -188,19 +188,21 @@ def lockstep(
     controller_params: Mapping[str, Any] | None = None,
     beside: Beside | None = None,
     recorded: bool = False,
+    engine: str = "pybullet",
 ) -> list[dict[str, Any]]:
     """Lockstep throughput of sim_bridge + each law's controller (two processes) on
     ``robot``: ``seconds`` of wall time from the first tick, measured by the controller.
     ``controller_params``: added to each controller's (``use_sim_time``); ``beside``: what
     runs beside the loop during each measurement (:data:`Beside`; the figures are then
     counted from its mark: the rate, ticks and seconds, not the percentiles);
-    ``recorded``: a :class:`Recording` beside it instead (one bag per law)."""
+    ``recorded``: a :class:`Recording` beside it instead (one bag per law); ``engine``:
+    sim_bridge's physics engine (its parameter ``engine``)."""
     joints = joints_of(robot)
     results = []
     with lease_domain() as lease, ProcessGroup(workdir, lease.domain_id) as group:
         group.start(
             "sim_bridge",
-            {"robot": robot, "mode": "lockstep", "start_paused": True},
+            {"robot": robot, "mode": "lockstep", "start_paused": True, "engine": engine},
         )
         observer = Observer(lease.domain_id)
         try:
@@ -242,6 +244,7 @@ def lockstep(
                     {
                         "robot": robot,
                         "law": law,
+                        "engine": engine,
                         "steps_per_s": float(status["total.rate_hz"]),
                         "real_time_factor": float(status["total.rate_hz"]) * 1e-3,
                         "steps": int(float(status["total.ticks"])),

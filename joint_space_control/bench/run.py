@@ -1,15 +1,17 @@
 """``jsc bench``: every benchmark in one run, a table on stdout and ``bench.json``.
 
 Sections (all by default): ``compute`` (laws and Pinocchio calls per tick, no ROS),
-``in_process`` (plant + law in one process, no ROS), ``pingpong`` (plain rclpy), ``lockstep``
-(sim_bridge + controller over ROS 2), ``realtime`` (1 kHz on the wall clock, with the
+``in_process`` (plant + law in one process, no ROS), ``physics`` (one physics step of the
+plant per robot and engine, PyBullet and MuJoCo, in process), ``pingpong`` (plain rclpy),
+``lockstep`` (sim_bridge + controller over ROS 2; the bench's own loop also with
+``engine:=mujoco``), ``realtime`` (1 kHz on the wall clock, with the
 machine's floor: a bare Python thread paced the same way), ``analyze`` (``jsc analyze``
 per million messages) and ``sweep`` (runs per minute of a fixed sweep on a Dask LocalCluster
 of 1 and then 2 workers, and where a run's wall time goes; skipped by ``--quick``) and
 ``dashboard`` (lockstep steps/s and realtime on-time without and with the dashboard and its
 page open in a browser, in alternating pairs, with each process's CPU; bench.dashboard).
-Ping-pong and lockstep alternate in ``rounds`` (each row is the median round, ``rounds``
-keeps them all). ``ratios`` and ``goals`` are derived; the CPU time
+Ping-pong and lockstep (its loops on both engines) alternate in ``rounds`` (each row is the
+median round, ``rounds`` keeps them all). ``ratios`` and ``goals`` are derived; the CPU time
 the hypervisor took during each part (``cpu_steal_fraction``) says how much the machine
 itself was disturbed.
 """
@@ -34,6 +36,7 @@ from joint_space_control.json_values import jsonable
 SECTIONS = (
     "compute",
     "in_process",
+    "physics",
     "pingpong",
     "lockstep",
     "realtime",
@@ -49,9 +52,26 @@ REALTIME_CASES = tuple((load, p) for load in ("quiet", "hog") for p in REALTIME_
 FLOOR = "realtime_floor"
 ROBOTS = ("planar_2dof", "iiwa")
 LAWS = tuple(compute.LAWS)
-#: The lockstep loops measured in each round, by result key: the bench's own (False), and
-#: the same loop as users run it (True: ros.AS_USERS_RUN_IT, with a recorder).
-LOCKSTEP_KINDS = {"lockstep": False, "lockstep_as_used": True}
+ENGINES = ("pybullet", "mujoco")  # sim_bridge.engines.ENGINES, the default first
+
+
+@dataclass(frozen=True)
+class LockstepKind:
+    """One of the lockstep loops of a round: the bench's own or as users run it
+    (``as_used``: ros.AS_USERS_RUN_IT, with a recorder), on sim_bridge's ``engine``."""
+
+    as_used: bool = False
+    engine: str = "pybullet"
+
+
+#: The lockstep loops measured in each round, in this order, by result key: the bench's own,
+#: the same on MuJoCo right after it (the engines' ratio is paired within the round), and
+#: the loop as users run it.
+LOCKSTEP_KINDS = {
+    "lockstep": LockstepKind(),
+    "lockstep_mujoco": LockstepKind(engine="mujoco"),
+    "lockstep_as_used": LockstepKind(as_used=True),
+}
 
 
 @dataclass(frozen=True)
@@ -60,6 +80,8 @@ class Options:
 
     ticks: int = 20_000  # law timings per (robot, law)
     in_process_steps: int = 5_000
+    physics_steps: int = 2_000  # physics steps per (robot, engine) in each of physics_repeats
+    physics_repeats: int = 5
     pingpong_seconds: float = 6.0
     lockstep_seconds: float = 6.0
     # ping-pong and lockstep alternate this many times, each run for its seconds / rounds:
@@ -85,6 +107,8 @@ class Options:
         return cls(
             ticks=1000,
             in_process_steps=500,
+            physics_steps=500,
+            physics_repeats=3,
             pingpong_seconds=0.5,
             lockstep_seconds=0.5,
             rounds=1,
@@ -149,10 +173,27 @@ def run(
                 for law in LAWS
             ],
         )
+    if "physics" in sections:
+        log("physics: one plant step per robot and engine, in process")
+        physics = measured(
+            "physics",
+            lambda: compute.physics_steps(
+                compute.PHYSICS_ROBOTS, ENGINES, options.physics_steps, options.physics_repeats
+            ),
+        )
+        result["physics"] = {**physics, "ratios": physics_ratios(physics["rows"])}
     # per round and robot, the ping-pong right before the loops it is compared with
     rounds = max(1, options.rounds)
     pingpongs: list[dict[str, Any]] = []
-    loops: dict[str, list[dict[str, Any]]] = {key: [] for key in LOCKSTEP_KINDS}
+    kinds = dict(LOCKSTEP_KINDS)
+    if "lockstep" in sections:
+        for key, kind in LOCKSTEP_KINDS.items():
+            why = compute.engine_missing(kind.engine)
+            if why is not None:
+                log(f"{key}: left out: {why}")
+                result.setdefault("skipped", {})[key] = why
+                del kinds[key]
+    loops: dict[str, list[dict[str, Any]]] = {key: [] for key in kinds}
     for k in range(rounds):
         for robot in ROBOTS:
             if "pingpong" in sections:
@@ -164,17 +205,18 @@ def run(
                 )
                 pingpongs.append({**row, "round": k})
             if "lockstep" in sections:
-                for key, as_used in LOCKSTEP_KINDS.items():
+                for key, kind in kinds.items():
                     rows = measured(
                         f"{key}_{robot}",
-                        lambda robot=robot, k=k, key=key, as_used=as_used: ros.lockstep(
+                        lambda robot=robot, k=k, key=key, kind=kind: ros.lockstep(
                             out / "runs" / f"{key}_{robot}_{k}",
                             robot,
                             LAWS,
                             options.lockstep_seconds / rounds,
                             log,
-                            controller_params=ros.AS_USERS_RUN_IT if as_used else None,
-                            recorded=as_used,
+                            controller_params=ros.AS_USERS_RUN_IT if kind.as_used else None,
+                            recorded=kind.as_used,
+                            engine=kind.engine,
                         ),
                     )
                     loops[key].extend({**row, "round": k} for row in rows)
@@ -291,37 +333,75 @@ def median_row(rows: Sequence[dict[str, Any]], key: str) -> dict[str, Any]:
     return row
 
 
-def _paired_ratio(
-    result: dict[str, Any], robot: str, law: str, loop: str = "lockstep"
+def _by_round(rows: Sequence[dict[str, Any]], key: str, **match: Any) -> dict[int, float]:
+    """``key`` of each round's row matching ``match``, by round."""
+    return {r["round"]: r[key] for r in rows if all(r.get(k) == v for k, v in match.items())}
+
+
+def _median_of_ratios(
+    numerator: dict[int, float], denominator: dict[int, float]
 ) -> tuple[float, list[float]]:
-    """Median over the rounds of ``loop`` (the rounds' key: ``lockstep``, or
-    ``lockstep_as_used``) / ping-pong measured in the same round, and each."""
-    rounds = result.get("rounds", {})
-    pp = {
-        r["round"]: r["round_trips_per_s"]
-        for r in rounds.get("pingpong", [])
-        if r["robot"] == robot
-    }
-    each = [
-        r["steps_per_s"] / pp[r["round"]]
-        for r in rounds.get(loop, [])
-        if r["robot"] == robot and r["law"] == law and r["round"] in pp
-    ]
+    """Median (the lower middle one) of numerator / denominator of the same round, and
+    each, in the rounds' order; NaN and none without a round in both."""
+    each = [value / denominator[k] for k, value in numerator.items() if k in denominator]
     if not each:
         return math.nan, []
     ordered = sorted(each)
     return ordered[(len(ordered) - 1) // 2], each
 
 
+def _paired_ratio(
+    result: dict[str, Any], robot: str, law: str, loop: str = "lockstep"
+) -> tuple[float, list[float]]:
+    """Median over the rounds of ``loop`` (the rounds' key: ``lockstep``, or
+    ``lockstep_as_used``) / ping-pong measured in the same round, and each."""
+    rounds = result.get("rounds", {})
+    return _median_of_ratios(
+        _by_round(rounds.get(loop, []), "steps_per_s", robot=robot, law=law),
+        _by_round(rounds.get("pingpong", []), "round_trips_per_s", robot=robot),
+    )
+
+
+def _engine_ratio(result: dict[str, Any], robot: str, law: str) -> tuple[float, list[float]]:
+    """Median over the rounds of the loop on MuJoCo / the same loop on PyBullet measured
+    right before it in the same round, and each."""
+    rounds = result.get("rounds", {})
+    return _median_of_ratios(
+        *(
+            _by_round(rounds.get(key, []), "steps_per_s", robot=robot, law=law)
+            for key in ("lockstep_mujoco", "lockstep")
+        )
+    )
+
+
+def physics_ratios(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per robot with both engines' rows: MuJoCo's physics step / PyBullet's (< 1: MuJoCo
+    steps faster)."""
+    out = []
+    for robot in dict.fromkeys(r["robot"] for r in rows):
+        bullet = _find(rows, robot=robot, engine="pybullet")
+        mujoco = _find(rows, robot=robot, engine="mujoco")
+        if bullet and mujoco:
+            out.append(
+                {
+                    "robot": robot,
+                    "mujoco_over_pybullet": mujoco["us_per_step"] / bullet["us_per_step"],
+                }
+            )
+    return out
+
+
 def ratios(result: dict[str, Any]) -> list[dict[str, Any]]:
-    """The lockstep loop against the plain ping-pong (the median of the ratios of each round)
-    and against the in-process ceiling."""
+    """The lockstep loop against the plain ping-pong (the median of the ratios of each round),
+    against the in-process ceiling, and on MuJoCo against PyBullet (the median of the ratios
+    of each round)."""
     out = []
     for loop in result.get("lockstep", []):
         robot, law = loop["robot"], loop["law"]
         ceiling = _find(result.get("in_process", []), robot=robot, law=law)
         over_pingpong, each = _paired_ratio(result, robot, law)
         as_used, as_used_each = _paired_ratio(result, robot, law, "lockstep_as_used")
+        engines, engines_each = _engine_ratio(result, robot, law)
         out.append(
             {
                 "robot": robot,
@@ -333,6 +413,8 @@ def ratios(result: dict[str, Any]) -> list[dict[str, Any]]:
                 "loop_over_in_process": loop["steps_per_s"] / ceiling["steps_per_s"]
                 if ceiling
                 else math.nan,
+                "mujoco_over_pybullet": engines,
+                "mujoco_over_pybullet_rounds": engines_each,
             }
         )
     return out
@@ -433,6 +515,58 @@ def _pct(value: Any) -> str:
     return f"{100 * value:.2f}%"
 
 
+def format_physics(physics: dict[str, Any]) -> list[str]:
+    """The physics section's lines: a robot a line, both engines (the median round's mean
+    step, and the median step of all rounds: the one a busy moment barely moves) and their
+    ratio."""
+    rows = physics["rows"]
+    first = rows[0] if rows else {"steps": 0, "repeats": 0}
+    lines = [
+        "physics step in process [us] (sim_bridge's plant at 1 kHz, one step under gravity "
+        f"compensation; the median of {first['repeats']} rounds' mean of "
+        f"{first['steps']:,} steps)",
+        "  robot        joints  pybullet    mujoco  mujoco/pybullet  p50 pybullet / mujoco",
+    ]
+    for robot in dict.fromkeys(r["robot"] for r in rows):
+        bullet = _find(rows, robot=robot, engine="pybullet") or {}
+        mujoco = _find(rows, robot=robot, engine="mujoco") or {}
+        ratio = _find(physics.get("ratios", []), robot=robot) or {}
+        joints = (bullet or mujoco)["joints"]
+        lines.append(
+            f"  {robot:12s} {joints:>6} {_f(bullet.get('us_per_step'), 1):>9}"
+            f" {_f(mujoco.get('us_per_step'), 1):>9}"
+            f" {_f(ratio.get('mujoco_over_pybullet'), 2):>16}"
+            f" {_f(bullet.get('per_step', {}).get('p50_us'), 1):>12}"
+            f" / {_f(mujoco.get('per_step', {}).get('p50_us'), 1)}"
+        )
+    lines += [f"  left out: {why}" for why in physics.get("skipped", [])]
+    return [*lines, ""]
+
+
+def format_engines(result: dict[str, Any]) -> list[str]:
+    """The lockstep loop's lines on both of sim_bridge's engines."""
+    lines = [
+        "  sim_bridge engine:=mujoco against engine:=pybullet (the bench's loop above, the "
+        "same controllers; sim step: sim_bridge's physics step and state published, p50):",
+        "  robot        law                pybullet    mujoco  mujoco/pybullet  "
+        "sim step p50 [us] pybullet / mujoco  rounds",
+    ]
+    for robot in ROBOTS:
+        for law in LAWS:
+            bullet = _find(result.get("lockstep", []), robot=robot, law=law) or {}
+            mujoco = _find(result["lockstep_mujoco"], robot=robot, law=law) or {}
+            ratio = _find(result.get("ratios", []), robot=robot, law=law) or {}
+            lines.append(
+                f"  {robot:12s} {law:18s} {_f(bullet.get('steps_per_s')):>8}"
+                f" {_f(mujoco.get('steps_per_s')):>9}"
+                f" {_f(ratio.get('mujoco_over_pybullet'), 2):>16}"
+                f" {_f(bullet.get('sim_step_p50_us')):>22}"
+                f" / {_f(mujoco.get('sim_step_p50_us')):<12}"
+                + " ".join(_f(x, 2) for x in ratio.get("mujoco_over_pybullet_rounds", []))
+            )
+    return lines
+
+
 def format_table(result: dict[str, Any]) -> str:
     """The human-readable summary of a result."""
     m, v = result["machine"], result["versions"]
@@ -454,6 +588,8 @@ def format_table(result: dict[str, Any]) -> str:
                 f" {_f(row['pinocchio_per_tick']['p99_us'], 1):>5}"
             )
         lines.append("")
+    if "physics" in result:
+        lines += format_physics(result["physics"])
     if "lockstep" in result or "in_process" in result or "pingpong" in result:
         lines.append(
             "lockstep [steps/s]                 over ROS  in-process  ping-pong  "
@@ -509,6 +645,9 @@ def format_table(result: dict[str, Any]) -> str:
                         f" {_f(over_loop, 2):>13}  "
                         + " ".join(_f(x, 2) for x in ratio.get("as_used_over_pingpong_rounds", []))
                     )
+        if result.get("lockstep_mujoco"):
+            lines += format_engines(result)
+        lines += [f"  {key} left out: {why}" for key, why in result.get("skipped", {}).items()]
         lines.append("")
     if result.get("realtime"):
         rows = result["realtime"]

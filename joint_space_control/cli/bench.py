@@ -11,8 +11,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Register ``jsc bench``."""
     p = subparsers.add_parser(
         "bench",
-        help="measure the control loop: law compute, lockstep over ROS 2 vs ping-pong and "
-        "in-process, realtime 1 kHz, jsc analyze, sweep throughput on 1 and 2 Dask workers, "
+        help="measure the control loop: law compute, the physics step on PyBullet and MuJoCo, "
+        "lockstep over ROS 2 (on both engines) vs ping-pong and in-process, realtime 1 kHz, "
+        "jsc analyze, sweep throughput on 1 and 2 Dask workers, "
         "the loop without and with the dashboard's page open; prints a table, writes bench.json",
     )
     p.add_argument("--out", type=Path, default=Path("out/bench"), help="output dir")

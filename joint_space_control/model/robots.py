@@ -9,6 +9,7 @@ user asks them to (friction, payload, mass scale).
 
 from __future__ import annotations
 
+import importlib.metadata
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
@@ -74,6 +75,19 @@ def builtin_robots() -> dict[str, RobotSpec]:
             tuple(f"panda_joint{i}" for i in range(1, 8)),
         ),
     }
+
+
+def example_robot_data_share() -> Path | None:
+    """The folder ``example-robot-data`` (PyPI) installs its robots under, None when it is
+    not installed: ``<site-packages>/cmeel.prefix/share``, holding
+    ``example-robot-data/robots/...``. Its descriptions' meshes are
+    ``package://example-robot-data/...`` URIs, so this folder is their ``package_paths``."""
+    try:
+        dist = importlib.metadata.distribution("example-robot-data")
+    except importlib.metadata.PackageNotFoundError:
+        return None
+    share = Path(str(dist.locate_file("cmeel.prefix/share")))
+    return share if (share / "example-robot-data" / "robots").is_dir() else None
 
 
 def resolve_robot(

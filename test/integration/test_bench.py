@@ -4,13 +4,15 @@ values are timings of a shared machine and are not checked, only that they are t
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
 
 import pytest
 
-from joint_space_control.bench.run import ROBOTS, SECTIONS
+from joint_space_control.bench.compute import PHYSICS_ROBOTS
+from joint_space_control.bench.run import ENGINES, ROBOTS, SECTIONS
 
 # realtime: run alone after the parallel part, since its CPU hogs would load the machine
 # under another worker's test
@@ -56,6 +58,18 @@ def test_quick_bench_writes_every_section(tmp_path):
         for part in ("law_per_tick", "pinocchio_per_tick"):
             assert {"p50_us", "p99_us", "max_us", "samples"} <= set(row[part])
     assert {(r["robot"], r["law"]) for r in data["in_process"]} == pairs
+    # the physics step of every robot on both engines (example-robot-data is a test extra)
+    physics = data["physics"]
+    assert physics["skipped"] == []
+    assert {(r["robot"], r["engine"]) for r in physics["rows"]} == {
+        (robot, engine) for robot in PHYSICS_ROBOTS for engine in ENGINES
+    }
+    us = {(r["robot"], r["engine"]): r["us_per_step"] for r in physics["rows"]}
+    assert all(math.isfinite(v) and v > 0 for v in us.values())
+    assert {r["robot"]: r["mujoco_over_pybullet"] for r in physics["ratios"]} == pytest.approx(
+        {robot: us[robot, "mujoco"] / us[robot, "pybullet"] for robot in PHYSICS_ROBOTS}
+    )
+    assert "physics step in process" in result.stdout
     assert {r["robot"] for r in data["pingpong"]} == set(ROBOTS)
     assert all(r["round_trips_per_s"] > 0 for r in data["pingpong"])
     assert {(r["robot"], r["law"]) for r in data["lockstep"]} == pairs
@@ -69,6 +83,27 @@ def test_quick_bench_writes_every_section(tmp_path):
     assert len(bags) == len(pairs), bags
     assert {(r["robot"], r["law"]) for r in data["ratios"]} == pairs
     assert all(r["as_used_over_pingpong"] > 0 for r in data["ratios"])
+    # the bench's loop again with sim_bridge engine:=mujoco, in the same round (one: --quick)
+    assert {(r["robot"], r["law"], r["engine"]) for r in data["lockstep"]} == {
+        (robot, law, "pybullet") for robot, law in pairs
+    }
+    assert {(r["robot"], r["law"], r["engine"]) for r in data["lockstep_mujoco"]} == {
+        (robot, law, "mujoco") for robot, law in pairs
+    }
+    assert all(r["steps"] > 0 and r["steps_per_s"] > 0 for r in data["lockstep_mujoco"])
+    for ratio in data["ratios"]:
+        on = {
+            key: next(
+                r["steps_per_s"]
+                for r in data[key]
+                if (r["robot"], r["law"]) == (ratio["robot"], ratio["law"])
+            )
+            for key in ("lockstep", "lockstep_mujoco")
+        }
+        assert ratio["mujoco_over_pybullet"] == pytest.approx(
+            on["lockstep_mujoco"] / on["lockstep"]
+        )
+    assert "engine:=mujoco against engine:=pybullet" in result.stdout
     assert "as users run it" in result.stdout
     cases = {(r["load"], r["thread_priority"]) for r in data["realtime"]}
     assert cases == {("quiet", 0), ("quiet", 50), ("hog", 0), ("hog", 50)}
