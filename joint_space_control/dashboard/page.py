@@ -9,6 +9,7 @@ at run time.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -531,6 +532,25 @@ class PortInUseError(RuntimeError):
     pass
 
 
+class OneLineErrors(logging.Filter):
+    """A library's error logged with its traceback becomes one line with the reason: a
+    client that connects and says nothing (a port scanner, a health check, a browser that
+    gives up) made the web server log three chained tracebacks per connection."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.exc_info and record.exc_info[1] is not None:
+            reason = record.exc_info[1]
+            while reason.__cause__ is not None:  # the first cause says what happened
+                reason = reason.__cause__
+            record.msg = f"{record.getMessage()}: {type(reason).__name__}: {reason}"
+            record.args, record.exc_info, record.exc_text = (), None, None
+        return True
+
+
+#: The web server's own logger (websockets, under viser).
+WEB_SERVER_LOGGER = "websockets.server"
+
+
 class Page:
     """The page: a world panel (time, pause/resume/reset, the plant's parameters) and one
     tab per robot."""
@@ -540,6 +560,9 @@ class Page:
 
         client_is_bundled()
         never_build_client()
+        server_log = logging.getLogger(WEB_SERVER_LOGGER)
+        if not any(isinstance(f, OneLineErrors) for f in server_log.filters):
+            server_log.addFilter(OneLineErrors())
         self.server = viser.ViserServer(
             host=host, port=port, label="joint_space_control", verbose=False
         )

@@ -168,3 +168,31 @@ def test_the_camera_looks_at_the_robots_and_sees_every_corner():
         angle = np.degrees(np.arccos(ray @ axis / np.linalg.norm(ray)))
         assert angle < 25.0 + 1e-9, (corner, angle)
     assert position[2] > look_at[2]  # from above
+
+
+def test_a_client_that_says_nothing_is_one_line_in_the_log_not_three_tracebacks(caplog):
+    """A TCP connection closed before its HTTP request (a port probe) made the web server
+    log three chained tracebacks (found by jsc soak --faults); the page's filter keeps the
+    line and the first cause's reason."""
+    import logging
+
+    from joint_space_control.dashboard.page import WEB_SERVER_LOGGER, OneLineErrors
+
+    logger = logging.getLogger(WEB_SERVER_LOGGER + ".test")
+    logger.addFilter(OneLineErrors())
+    try:
+        try:
+            try:
+                raise EOFError("stream ends after 0 bytes, before end of line")
+            except EOFError as first:
+                raise EOFError("connection closed while reading HTTP request line") from first
+        except EOFError as second:
+            raise ValueError("did not receive a valid HTTP request") from second
+    except ValueError:
+        with caplog.at_level(logging.ERROR, logger=logger.name):
+            logger.error("opening handshake failed", exc_info=True)
+    (record,) = caplog.records
+    assert record.exc_info is None and "\n" not in caplog.text.strip()
+    assert record.getMessage() == (
+        "opening handshake failed: EOFError: stream ends after 0 bytes, before end of line"
+    )
