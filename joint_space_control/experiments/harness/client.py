@@ -18,6 +18,7 @@ from typing import Any
 
 import rclpy
 from rclpy.executors import ShutdownException, SingleThreadedExecutor, TimeoutException
+from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from std_srvs.srv import Trigger
@@ -104,6 +105,18 @@ class RosClient:
         """Handle what comes in for ``seconds`` of wall time."""
         end = time.monotonic() + seconds
         self.spin_until(lambda: time.monotonic() >= end, seconds + 1.0, "nothing", check)
+
+    @contextmanager
+    def other_node(self, name: str) -> Iterator[Node]:
+        """A second node of this client's participant, served by its executor while the
+        block runs (a second publisher of a topic, a rogue commander), then destroyed."""
+        node = rclpy.create_node(name, context=self.context)
+        self.executor.add_node(node)
+        try:
+            yield node
+        finally:
+            self.executor.remove_node(node)
+            node.destroy_node()
 
     # -- services and parameters ---------------------------------------------------------
     def call_trigger(

@@ -63,10 +63,13 @@ class NodeProcess:
         prefix: Sequence[str] = (),
         namespace: str = "",
         hold_fds: Sequence[int] = (),
+        tag: str = "",
     ) -> None:
         """``prefix``: a command that runs the node (``setpriv …``, ``taskset …``);
         ``namespace``: the node's (its files then go in ``workdir/<namespace>/``);
-        ``hold_fds``: descriptors the node keeps open while it runs (a domain lease)."""
+        ``hold_fds``: descriptors the node keeps open while it runs (a domain lease);
+        ``tag``: added to the names of its files (a node restarted under the same name keeps
+        the log of each run)."""
         if executable not in EXECUTABLES:
             raise ValueError(f"unknown executable '{executable}'")
         if namespace:
@@ -75,9 +78,9 @@ class NodeProcess:
         workdir.mkdir(parents=True, exist_ok=True)
         self.name = f"{namespace}/{name}" if namespace else name
         self.executable = executable
-        self.params_file = workdir / f"{name}.params.yaml"
+        self.params_file = workdir / f"{name}{tag}.params.yaml"
         self.params_file.write_text(yaml.safe_dump({"/**": {"ros__parameters": dict(params)}}))
-        self.log_path = workdir / f"{name}.log"
+        self.log_path = workdir / f"{name}{tag}.log"
         self._log = open(self.log_path, "w")  # noqa: SIM115 - closed in stop()
         cmd = [
             *prefix,
@@ -164,8 +167,10 @@ class ProcessGroup:
         extra_args: list[str] | None = None,
         prefix: Sequence[str] = (),
         namespace: str = "",
+        tag: str = "",
     ) -> NodeProcess:
-        """Start a node; it is ``nodes[name]``, or ``nodes["<namespace>/<name>"]``."""
+        """Start a node; it is ``nodes[name]``, or ``nodes["<namespace>/<name>"]``
+        (``tag``: see :class:`NodeProcess`)."""
         node = NodeProcess(
             executable,
             name or executable,
@@ -176,6 +181,7 @@ class ProcessGroup:
             prefix,
             namespace,
             self.hold_fds,
+            tag,
         )
         self.nodes[node.name] = node
         return node
