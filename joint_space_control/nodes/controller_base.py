@@ -89,6 +89,7 @@ from joint_space_control.control.controller import Step
 from joint_space_control.control.sampling import VelocitySource
 from joint_space_control.laws.gains import GainChoice
 from joint_space_control.laws.limits import beyond_bound, joints_beyond
+from joint_space_control.laws.plausible import PlausibleStates
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.ros import parameters as params
 from joint_space_control.ros.control_path import ControlPath
@@ -172,6 +173,7 @@ class JointController(Node):
         self.joints = self.model.joint_names
         self.n = len(self.joints)
         self.effort_limits = self.model.effort_limits
+        self._plausible = PlausibleStates(*self.model.position_limits, self.joints)
         self._robot_name = spec.name
         self._rate = rate = params.value(values, "rate")
         self.trigger_parameter = params.value(values, "trigger")
@@ -478,6 +480,11 @@ class JointController(Node):
         if not dq.size and self.core.sampling.velocity is VelocitySource.MEASURED:
             self.counts["rejected.joint_states"] += 1
             self._log.warning("no velocity", NO_VELOCITY)
+            return
+        absurd = self._plausible.reason(q, dq)
+        if absurd:
+            self.counts["rejected.joint_states"] += 1
+            self._log.warning("rejected joint state", "rejected joint state: {}", absurd)
             return
         previous = self._state_ns
         if stamp < previous:

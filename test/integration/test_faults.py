@@ -173,10 +173,14 @@ def test_controller_rejects_bad_states_references_and_parameters(rig):
     answer(8 * MS)  # in order on one topic: the bad ones came first
     assert not any(rig.answered(k * MS) for k in range(2, 8))
 
-    # finite but absurd: the Coriolis term overflows → no command at all
-    rig.send(states, joint_state(9 * MS, dq=(1e200, 1e200)))
-    # large and finite: the command is clamped to the effort limits
-    states.publish(joint_state(10 * MS, dq=(1e3, -1e3)))
+    # finite but absurd, refused where they arrive (laws/plausible.py): a speed that would
+    # overflow the Coriolis term, a position 1e9 rad away (taken, it drove the arm at its
+    # effort limits for seconds in the fault soak)
+    absurd = [joint_state(9 * MS, dq=(1e200, 1e200)), joint_state(9 * MS, q=(1e9, 0.0))]
+    for msg in absurd:
+        rig.send(states, msg)
+    # large and plausible: the command is clamped to the effort limits
+    states.publish(joint_state(10 * MS, dq=(5e2, -5e2)))
     answer(10 * MS)
     assert not rig.answered(9 * MS)
     clamped = dict(rig.commands)[10 * MS]
@@ -199,9 +203,9 @@ def test_controller_rejects_bad_states_references_and_parameters(rig):
     status = rig.diagnostics(
         node, lambda s: s["rejected.references"] == len(bad_refs) and s["total.ticks"] >= 3
     )
-    assert status["rejected.joint_states"] == len(bad_states)
-    assert status["dropped.nonfinite_torques"] == 1
-    # q̇ = ±1e3 rad/s: the law asked for far more than 2 × the limits (clamped, but counted)
+    assert status["rejected.joint_states"] == len(bad_states) + len(absurd)
+    assert status["dropped.nonfinite_torques"] == 0
+    # q̇ = ±500 rad/s: the law asked for far more than 2 × the limits (clamped, but counted)
     assert status["beyond_bound.torques"] == 1
     assert status["rejected.parameters"] == 2
     assert status["commanding"] == 1
