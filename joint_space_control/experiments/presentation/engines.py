@@ -107,4 +107,16 @@ def engine_table(by_engine: dict[str, list[ExperimentResult]]) -> list[str]:
             label = f"Q{result.scenario.question} `{name}`" if k == 0 else ""
             extra = apart if k == 0 else [""] * len(apart)
             lines.append("| " + " | ".join([label, *(_cell(c) for c in cells), *extra]) + " |")
-    return [*lines, ""]
+    return [*lines, "", WHAT_DIFFERS, ""]
+
+
+#: What the table's last column shows, said under it.
+WHAT_DIFFERS = (
+    "What makes the engines differ: both integrate the same model (the URDF's inertias, "
+    "mass matrix and bias forces equal to Pinocchio's to 1e-12 on both) with the same "
+    "scheme, semi-implicit Euler at 1/`physics_rate`, so a frictionless loop differs by "
+    "rounding (~1e-16 rad). Above rounding: a constraint acting (Coulomb friction, "
+    "stiction, the brakes, a joint limit), which MuJoCo solves as a soft constraint and "
+    "Bullet as a velocity motor (`coulomb_friction`: ~6e-5 rad); and a loop near the edge "
+    "of its stability, which amplifies rounding (`sampling_period`'s slowest sampling)."
+)
