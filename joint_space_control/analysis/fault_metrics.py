@@ -223,11 +223,7 @@ def efforts_beyond(effort: np.ndarray, limits: np.ndarray | float, rel_tol: floa
     recorded states in which the plant applied a torque beyond the effort limits ``limits``
     (one per joint, or one for all). NaN entries (no effort recorded) do not count, ±inf
     does."""
-    effort = np.asarray(effort, dtype=float)
-    if effort.size == 0:
-        return 0
-    over = np.abs(effort) > np.asarray(limits, dtype=float) * (1.0 + rel_tol)
-    return int(np.count_nonzero(over.any(axis=1)))
+    return int(np.count_nonzero(_beyond_rows(effort, limits, rel_tol)))
 
 
 def peak_effort_ratio(effort: np.ndarray, limits: np.ndarray | float) -> float:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from joint_space_control.analysis.bag import BagError, BagReader
 from joint_space_control.analysis.fault_figures import fault_figure, kind_colours, plotted_error
 from joint_space_control.analysis.fault_metrics import (
     KINDS,
@@ -500,3 +501,12 @@ def test_a_bag_that_cannot_be_recovered_is_listed_unreadable(tmp_path):
     assert [b.status for b in timeline.bags] == ["unreadable", "complete"]
     assert "nothing of the recording reached the disk" in timeline.bags[0].detail
     assert timeline.js_stamp_ns.size == 100 and set(timeline.js_bag.tolist()) == {1}
+
+
+def test_bag_messages_one_at_a_time(tmp_path):
+    bag = record(tmp_path / "bag", range(0, 5), EPOCH)
+    with BagReader(bag) as reader:
+        got = [(topic, log) for topic, log, _ in reader.messages([STATE_TOPIC])]
+        assert got == [(STATE_TOPIC, round((EPOCH + k * 1e-3) * 1e9) + 200_000) for k in range(5)]
+        with pytest.raises(BagError, match="no topic /nope"):
+            reader.messages(["/nope"])
