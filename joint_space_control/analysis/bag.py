@@ -190,6 +190,17 @@ class BagReader:
             return msg
         return None
 
+    def messages(self, topics: Sequence[str]) -> Iterator[tuple[str, int, object]]:
+        """(topic, log time [ns], deserialised message) of ``topics`` in log-time order, one
+        at a time: for bags too long to hold every message at once (see :meth:`read`).
+
+        Raises:
+            BagError: a topic is not in the bag, or a message cannot be read.
+        """
+        if unknown := [t for t in topics if t not in self.topics]:
+            raise BagError(f"{self.path}: no topic {', '.join(unknown)} in the bag")
+        return self._messages(topics)
+
     def read(
         self, topics: Iterable[str] | None = None, progress: Progress | None = None
     ) -> dict[str, TopicMessages]:
