@@ -7,6 +7,8 @@
 #                      for any missing
 #   make demo          short end-to-end demo into out/demo
 #   make stress        start/stop every executable 20 times with both signals (CI, ~4 min)
+#   make fault-soak    jsc soak --faults' short form: every fault kind once (~3.5 min; CI
+#                      runs it within make test-long)
 #   make colcon-check  colcon build into build/colcon_ws and check the ament layout
 #   make wheel-check   build the wheel, install it into a fresh venv, run jsc from /tmp
 #   make lint / format / clean
@@ -25,7 +27,7 @@ STAMP := $(VENV)/.install-stamp
 # Console scripts that must land in .venv/bin (checked after the install, see setup.cfg).
 VENV_SCRIPTS := sim_bridge pd_gravity_controller inverse_dynamics_controller trajectory_generator recorder dashboard jsc
 
-.PHONY: venv system-deps demo test test-long browser-test stress lint format colcon-check wheel-check clean distclean
+.PHONY: venv system-deps demo test test-long browser-test stress fault-soak lint format colcon-check wheel-check clean distclean
 
 venv: $(STAMP)
 
@@ -128,6 +130,12 @@ browser-test: venv system-deps
 # crash in C code prints its Python stack (faulthandler).
 stress: venv
 	PYTHONFAULTHANDLER=1 $(PY) -m pytest -n 2 test/stress
+
+# The fault soak's short form alone (test/integration/test_soak.py; make test-long runs it
+# too): every kind of fault once, 15 s apart, judged from the bags. The hour:
+# `jsc soak --faults` (docs/safety.md, Fault soak).
+fault-soak: venv
+	$(PY) -m pytest -n 0 -m long test/integration/test_soak.py -k fault_soak
 
 lint: venv
 	$(VENV)/bin/ruff check .

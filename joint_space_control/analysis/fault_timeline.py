@@ -23,6 +23,8 @@ from joint_space_control.analysis.bag import BagError, BagReader, state_layout
 from joint_space_control.analysis.fault_metrics import BagSpan, Timeline
 from joint_space_control.recording.recover import RecoveryError, recover
 
+#: The ``header.frame_id`` of the plant's joint states (sim_bridge leaves it empty).
+PLANT_FRAME = ""
 #: Suffix of the recovered copy of a bag (``recover``'s default, next to the bag).
 RECOVERED_SUFFIX = "_recovered"
 
@@ -147,9 +149,13 @@ class _StateRows:
 
 
 class _JointRows:
-    """Receive times, stamps, positions and efforts of joint state messages (one bag)."""
+    """Receive times, stamps, positions and efforts of the plant's joint state messages (one
+    bag): those with the plant's ``header.frame_id`` (sim_bridge's: ""), not what another
+    node published on the topic (the soak's malformed ones, say)."""
 
-    def __init__(self) -> None:
+    def __init__(self, frame_id: str = PLANT_FRAME) -> None:
+        self.frame_id = frame_id
+        self.others = 0  # messages of other publishers, left out
         self.names: tuple[str, ...] = ()
         self.log: list[int] = []
         self.stamp: list[int] = []
@@ -169,6 +175,9 @@ class _JointRows:
         return self.log[-1] * 1e-9
 
     def add(self, log_ns: int, msg) -> None:
+        if msg.header.frame_id != self.frame_id:
+            self.others += 1
+            return
         if not self.names:
             self.names = tuple(msg.name)
             self._col = {j: k for k, j in enumerate(self.names)}

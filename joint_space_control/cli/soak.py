@@ -1,5 +1,6 @@
-"""``jsc soak``: the realtime loop at 1 kHz for minutes with gains changed every second;
-prints the figures and the verdict, writes soak.json (wiring and printing only)."""
+"""``jsc soak``: the realtime loop at 1 kHz for minutes with gains changed every second, or
+(``--faults``) for an hour with a fault injected every minute; prints the figures and the
+verdict, writes soak.json (wiring and printing only)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="soak run: realtime 1 kHz loop for minutes, gains changed every second; memory "
         "growth, command safety, parameter updates; writes soak.json, non-zero exit on fail",
     )
-    p.add_argument("--minutes", type=float, default=10.0, help="run length [min] (10)")
+    p.add_argument(
+        "--minutes", type=float, default=None, help="run length [min] (10; with --faults 60)"
+    )
     p.add_argument("--robot", default="iiwa", help="built-in robot (iiwa)")
     p.add_argument(
         "--controller",
@@ -26,7 +29,25 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="controller law (inverse_dynamics)",
     )
     p.add_argument("--out", type=Path, default=Path("out/soak"), help="output dir")
-    p.set_defaults(handler=lambda args: run(args.out, args.minutes, args.robot, args.controller))
+    p.add_argument(
+        "--faults",
+        action="store_true",
+        help="inject one fault every --period (default a minute; --minutes defaults to 60): "
+        "every kind at least once, judged from the bags (docs/safety.md, Fault soak)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="--faults: the schedule's seed (0)")
+    p.add_argument(
+        "--period", type=float, default=60.0, help="--faults: seconds between faults (60)"
+    )
+    p.set_defaults(handler=_handle)
+
+
+def _handle(args: argparse.Namespace) -> int:
+    if args.faults:
+        minutes = 60.0 if args.minutes is None else args.minutes
+        return run_faults(args.out, minutes, args.period, args.seed, args.robot, args.controller)
+    minutes = 10.0 if args.minutes is None else args.minutes
+    return run(args.out, minutes, args.robot, args.controller)
 
 
 def _num(value: Any, fmt: str = "{:.0f}") -> str:
@@ -125,4 +146,57 @@ def run(out: Path, minutes: float, robot: str, law: str) -> int:
     print()
     print(format_report(report))
     print(f"\nwritten: {Path(out) / 'soak.json'}")
+    return 0 if report["passed"] else 1
+
+
+def format_fault_report(report: dict[str, Any]) -> str:
+    """The fault soak's table per kind, then the criteria and the verdict."""
+    o = report["options"]
+    states = report["states"]
+    lines = [
+        f"soak with faults: {o['robot']} {o['controller']}, {report['duration_s'] / 60:.2f} min, "
+        f"{len(report['faults'])} faults (a fault every {o['period_s']:g} s, seed {o['seed']})",
+        f"machine: {report['machine']['cpu']}, {report['machine']['cores']} cores",
+        "",
+        report["by_kind_text"],
+        "",
+        f"states recorded {states['recorded']}, lost inside bags {states['lost_inside_bags']}, "
+        f"between bags (recorder down) {states['lost_between_bags']}; applied efforts beyond "
+        f"the limits {report['efforts_beyond_limits']} (peak |tau|/limit "
+        f"{_num(report['peak_effort_over_limit'], '{:.3f}')}); controller commands "
+        f"{report['commands']['commands']}, others refused by the plant's rules "
+        f"{report['other_commands']}",
+        "bags: " + ", ".join(f"{Path(b['path']).name} {b['status']}" for b in report["bags"]),
+        "",
+        "criteria:",
+    ]
+    for c in report["criteria"]:
+        mark = {True: "PASS", False: "FAIL", None: "----"}[c["met"]]
+        lines.append(f"  [{mark}] {c['name']}: {c['detail']}")
+    lines.append(f"verdict: {'PASS' if report['passed'] else 'FAIL'}")
+    return "\n".join(lines)
+
+
+def run_faults(out: Path, minutes: float, period: float, seed: int, robot: str, law: str) -> int:
+    from joint_space_control.experiments.fault_soak import FaultSoakOptions
+    from joint_space_control.experiments.fault_soak import run as run_fault_soak
+
+    if minutes <= 0 or period <= 0 or minutes * 60.0 < 1.5 * period:
+        print(
+            "jsc soak: error: --minutes and --period must be > 0, the run at least 1.5 periods",
+            file=sys.stderr,
+        )
+        return 2
+    options = FaultSoakOptions(minutes=minutes, period=period, seed=seed, robot=robot, law=law)
+    try:
+        report = run_fault_soak(out, options, lambda m: print(m, flush=True))
+    except KeyboardInterrupt:
+        print("jsc soak: interrupted; every process stopped", file=sys.stderr)
+        return 130
+    except (RuntimeError, TimeoutError, ValueError) as err:
+        print(f"jsc soak failed: {' '.join(str(err).split())}", file=sys.stderr)
+        return 1
+    print()
+    print(format_fault_report(report))
+    print(f"\nwritten: {Path(out) / 'soak.json'}, {Path(out) / 'soak.png'}")
     return 0 if report["passed"] else 1

@@ -66,3 +66,41 @@ def test_short_soak_reports_every_figure(tmp_path):
     # every process the soak started is gone
     ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert str(out) not in ps  # node processes (their parameter files are under out/)
+
+
+@pytest.mark.long  # three minutes of realtime loop, alone: make test-long (make fault-soak)
+@pytest.mark.realtime
+@pytest.mark.timeout(600)
+def test_short_fault_soak_survives_every_fault_kind_once(tmp_path):
+    """`jsc soak --faults`' short form (issue 27): every kind of fault once, 15 s apart; the
+    verdict from the bags passes (the arm held while braked or commanded by a rogue, the
+    loop back to tracking after each, no applied torque beyond the limits, no state lost
+    inside a bag, every bag complete or recovered, no traceback, no crash), and every
+    process is stopped. A regression of any fault path fails here."""
+    out = tmp_path / "fault_soak"
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    cmd = [
+        sys.executable, "-m", "joint_space_control.cli.main", "soak", "--faults",
+        "--minutes", "3", "--period", "15", "--seed", "0", "--out", str(out),
+    ]  # fmt: skip
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=540)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-3000:]
+    assert "verdict: PASS" in proc.stdout
+    report = json.loads((out / "soak.json").read_text())
+    assert report["passed"] is True
+    kinds = [f["kind"] for f in report["faults"]]
+    from joint_space_control.experiments.fault_schedule import KINDS
+
+    assert sorted(kinds) == sorted(KINDS)  # every kind, once
+    for kind in KINDS:
+        assert "fault " in proc.stdout and f": {kind} (" in proc.stdout  # printed as injected
+    by_kind = {k["kind"]: k for k in report["by_kind"]}
+    assert all(by_kind[k]["not_recovered"] == 0 for k in KINDS)
+    assert by_kind["kill_controller"]["worst_motion"] <= report["thresholds"]["max_motion"]
+    assert report["states"]["lost_inside_bags"] == 0 and report["efforts_beyond_limits"] == 0
+    assert [b["status"] for b in report["bags"]] == ["recovered", "complete"]
+    assert report["tracebacks"] == {} and report["crash"] is None
+    assert report["other_commands"] > 0  # the rogue's and the malformed ones were sent
+    assert (out / "soak.png").stat().st_size > 10_000
+    ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
+    assert str(out) not in ps  # every node process is gone
