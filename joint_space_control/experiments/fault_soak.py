@@ -654,6 +654,11 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
         "other_commands": soak.observer.others,
         "bags": [asdict(b) for b in timeline.bags],
         "memory": memory,
+        # every sample, [s from the start, MB] per process incarnation: where it grew
+        "memory_samples": {
+            key: {"t": t, "rss_mb": [r / 1e6 for r in rss]}
+            for key, (t, rss) in soak.memory.items()
+        },
         "tracebacks": found,
         "thresholds": asdict(thresholds),
         "figure": str(figure),
