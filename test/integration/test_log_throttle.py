@@ -78,13 +78,16 @@ def test_each_recurring_fault_of_a_controller_logs_one_line_a_second(rig):  # no
         ),
         "rejected joint state: no velocity": (states, no_velocity),
         "rejected reference:": (refs, lambda: reference([(0.5, (4.0, 0.0))])),  # beyond limits
-        # finite but absurd velocities: a torque far beyond 2 × the limits (clamped, said)
+        # large plausible velocities: a torque far beyond 2 × the limits (clamped, said)
         "× the effort limits (reject_factor): clamped": (
             states,
-            lambda: joint_state(next_stamp(), dq=(1e3, -1e3)),
+            lambda: joint_state(next_stamp(), dq=(5e2, -5e2)),
         ),
-        # the Coriolis term overflows: no command
-        "non-finite torque": (states, lambda: joint_state(next_stamp(), dq=(1e200, 1e200))),
+        # absurd ones (the Coriolis term would overflow): refused where they arrive
+        "rejected joint state: implausible measurement": (
+            states,
+            lambda: joint_state(next_stamp(), dq=(1e200, 1e200)),
+        ),
     }
     took = {text: flood(pub, make) for text, (pub, make) in faults.items()}
 
