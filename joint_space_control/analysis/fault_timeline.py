@@ -102,15 +102,11 @@ def _cat(parts: list[np.ndarray], dtype) -> np.ndarray:
     return np.concatenate(parts).astype(dtype, copy=False) if parts else np.empty(0, dtype)
 
 
-class _StateRows:
-    """Receive times and tracking errors of a controller's state messages (one bag)."""
+class _Rows:
+    """What one bag gave of a topic: the receive times [ns] of the messages kept."""
 
-    def __init__(self, topic: str) -> None:
-        self.topic = topic
+    def __init__(self) -> None:
         self.log: list[int] = []
-        self.error: list[float] = []
-        self.skipped = 0
-        self._labels: tuple[str, str] | None = None
 
     @property
     def count(self) -> int:
@@ -123,6 +119,17 @@ class _StateRows:
     @property
     def last(self) -> float:
         return self.log[-1] * 1e-9
+
+
+class _StateRows(_Rows):
+    """Receive times and tracking errors of a controller's state messages (one bag)."""
+
+    def __init__(self, topic: str) -> None:
+        super().__init__()
+        self.topic = topic
+        self.error: list[float] = []
+        self.skipped = 0
+        self._labels: tuple[str, str] | None = None
 
     def add(self, log_ns: int, msg) -> None:
         dims = msg.layout.dim
@@ -148,31 +155,19 @@ class _StateRows:
         return np.asarray(self.log, dtype=np.int64) * 1e-9
 
 
-class _JointRows:
+class _JointRows(_Rows):
     """Receive times, stamps, positions and efforts of the plant's joint state messages (one
     bag): those with the plant's ``header.frame_id`` (sim_bridge's: ""), not what another
     node published on the topic (the soak's malformed ones, say)."""
 
     def __init__(self, frame_id: str = PLANT_FRAME) -> None:
+        super().__init__()
         self.frame_id = frame_id
         self.others = 0  # messages of other publishers, left out
         self.names: tuple[str, ...] = ()
-        self.log: list[int] = []
         self.stamp: list[int] = []
         self.position: list[np.ndarray] = []
         self.effort: list[np.ndarray] = []
-
-    @property
-    def count(self) -> int:
-        return len(self.log)
-
-    @property
-    def first(self) -> float:
-        return self.log[0] * 1e-9
-
-    @property
-    def last(self) -> float:
-        return self.log[-1] * 1e-9
 
     def add(self, log_ns: int, msg) -> None:
         if msg.header.frame_id != self.frame_id:

@@ -135,17 +135,29 @@ def run(out: Path, minutes: float, robot: str, law: str) -> int:
         print("jsc soak: error: --minutes must be > 0", file=sys.stderr)
         return 2
     options = SoakOptions(minutes=minutes, robot=robot, law=law)
+    return _run_and_print(
+        lambda: run_soak(out, options, _say), format_report, Path(out), "soak.json"
+    )
+
+
+def _say(message: str) -> None:
+    print(message, flush=True)
+
+
+def _run_and_print(run_soak: Any, format_report: Any, out: Path, *written: str) -> int:
+    """Run a soak; print its report and what it wrote. Exit code: 0 passed, 1 failed or
+    could not run (the reason in one line), 130 interrupted (its processes stopped)."""
     try:
-        report = run_soak(out, options, lambda m: print(m, flush=True))
+        report = run_soak()
     except KeyboardInterrupt:
         print("jsc soak: interrupted; every process stopped", file=sys.stderr)
         return 130
     except (RuntimeError, TimeoutError, ValueError) as err:
-        print(f"jsc soak failed: {err}", file=sys.stderr)
+        print(f"jsc soak failed: {' '.join(str(err).split())}", file=sys.stderr)
         return 1
     print()
     print(format_report(report))
-    print(f"\nwritten: {Path(out) / 'soak.json'}")
+    print("\nwritten: " + ", ".join(str(out / name) for name in written))
     return 0 if report["passed"] else 1
 
 
@@ -188,15 +200,10 @@ def run_faults(out: Path, minutes: float, period: float, seed: int, robot: str, 
         )
         return 2
     options = FaultSoakOptions(minutes=minutes, period=period, seed=seed, robot=robot, law=law)
-    try:
-        report = run_fault_soak(out, options, lambda m: print(m, flush=True))
-    except KeyboardInterrupt:
-        print("jsc soak: interrupted; every process stopped", file=sys.stderr)
-        return 130
-    except (RuntimeError, TimeoutError, ValueError) as err:
-        print(f"jsc soak failed: {' '.join(str(err).split())}", file=sys.stderr)
-        return 1
-    print()
-    print(format_fault_report(report))
-    print(f"\nwritten: {Path(out) / 'soak.json'}, {Path(out) / 'soak.png'}")
-    return 0 if report["passed"] else 1
+    return _run_and_print(
+        lambda: run_fault_soak(out, options, _say),
+        format_fault_report,
+        Path(out),
+        "soak.json",
+        "soak.png",
+    )

@@ -138,7 +138,6 @@ class FaultObserver(SoakObserver):
 
     def __init__(self, domain_id: int, audit: CommandAudit, controller: str) -> None:
         self.sender = f"/{controller}"
-        self._images: dict[bytes, JointStateImage] = {}
         self.others = 0  # commands from anyone else
         super().__init__(domain_id, audit)
 

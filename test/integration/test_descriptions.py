@@ -38,6 +38,24 @@ def error_lines(log: str) -> list[str]:
     return [line for line in log.splitlines() if line.startswith("error:")]
 
 
+def assert_refused_in_one_line(
+    tmp_path, executable: str, cases: dict[str, tuple[dict, str]]
+) -> None:
+    """Each case (parameters, text of its line) started as ``executable``: exit code 2,
+    no traceback, one ``error:`` line holding the text."""
+    with ProcessGroup(tmp_path / "runs", next_domain_id()) as group:
+        nodes = {
+            kind: (group.start(executable, params, name=f"{executable}_{kind}"), match)
+            for kind, (params, match) in cases.items()
+        }
+        for kind, (node, match) in nodes.items():
+            assert node.proc.wait(timeout=60) == 2, (kind, node.log())
+            log = node.log()
+            assert "Traceback" not in log, (kind, log)
+            (line,) = error_lines(log)
+            assert match in line, (kind, line)
+
+
 @pytest.mark.parametrize("executable", ["sim_bridge", "pd_gravity_controller"])
 def test_unusable_descriptions_exit_2_with_one_line(tmp_path, executable):
     (tmp_path / "bad.urdf").write_text('<robot name="x"><link name="a"><joint name=')
@@ -50,17 +68,7 @@ def test_unusable_descriptions_exit_2_with_one_line(tmp_path, executable):
         "no_joints": ({"urdf_path": str(tmp_path / "rigid.urdf")}, "no movable joint"),
         "bad_limits": ({**BY_NAME["ur5"].params(), "effort_limits": [1.0, 2.0]}, "needs 1 or 6"),
     }
-    with ProcessGroup(tmp_path / "runs", next_domain_id()) as group:
-        nodes = {
-            kind: (group.start(executable, params, name=f"{executable}_{kind}"), match)
-            for kind, (params, match) in cases.items()
-        }
-        for kind, (node, match) in nodes.items():
-            assert node.proc.wait(timeout=60) == 2, (kind, node.log())
-            log = node.log()
-            assert "Traceback" not in log, (kind, log)
-            (line,) = error_lines(log)
-            assert match in line, (kind, line)
+    assert_refused_in_one_line(tmp_path, executable, cases)
 
 
 def test_what_the_mujoco_plant_cannot_do_is_refused_in_one_line(tmp_path):
@@ -76,17 +84,7 @@ def test_what_the_mujoco_plant_cannot_do_is_refused_in_one_line(tmp_path):
         ),
         "unknown": ({**iiwa, "engine": "bullet"}, "engine"),
     }
-    with ProcessGroup(tmp_path / "runs", next_domain_id()) as group:
-        nodes = {
-            kind: (group.start("sim_bridge", params, name=f"sim_bridge_{kind}"), match)
-            for kind, (params, match) in cases.items()
-        }
-        for kind, (node, match) in nodes.items():
-            assert node.proc.wait(timeout=60) == 2, (kind, node.log())
-            log = node.log()
-            assert "Traceback" not in log, (kind, log)
-            (line,) = error_lines(log)
-            assert match in line, (kind, line)
+    assert_refused_in_one_line(tmp_path, "sim_bridge", cases)
 
 
 def test_robot_topic_reads_the_latched_description(tmp_path):

@@ -63,6 +63,11 @@ class RunView:
         return values.controller_model(self.executable, self.robot, self.given)
 
 
+def verdict_word(passed: bool | None) -> str:
+    """How a page says a check's verdict."""
+    return {True: "agrees", False: "DISAGREES", None: "no claim"}[passed]
+
+
 def joints(c: dict) -> list[str]:
     return list(c["joints"])
 

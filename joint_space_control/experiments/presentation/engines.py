@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from joint_space_control.analysis.bag import BagError, joint_states, read_bag
+from joint_space_control.experiments.judging.outcome import verdict_word
 
 if TYPE_CHECKING:
     from joint_space_control.experiments.execution.runner import RunResult
@@ -25,10 +26,6 @@ if TYPE_CHECKING:
 
 #: The engines' names as the page prints them.
 ENGINE_NAMES = {"pybullet": "PyBullet", "mujoco": "MuJoCo"}
-
-
-def _verdict(passed: bool | None) -> str:
-    return {True: "agrees", False: "DISAGREES", None: "no claim"}[passed]
 
 
 def _cell(text: str) -> str:
@@ -101,7 +98,7 @@ def engine_table(by_engine: dict[str, list[ExperimentResult]]) -> list[str]:
                     cells.append("run failed: " + "; ".join(r.errors) if k == 0 else "")
                 elif k < len(r.outcomes):
                     o = r.outcomes[k]
-                    cells.append(f"*{_verdict(o.passed)}*: {o.text}")
+                    cells.append(f"*{verdict_word(o.passed)}*: {o.text}")
                 else:
                     cells.append("")
             label = f"Q{result.scenario.question} `{name}`" if k == 0 else ""

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from joint_space_control.analysis.report import write_metrics
+from joint_space_control.experiments.judging.outcome import verdict_word
 from joint_space_control.experiments.presentation.engines import engine_table
 from joint_space_control.json_values import jsonable
 
@@ -65,10 +66,6 @@ def result_json(result: ExperimentResult, short: bool) -> dict:
     }
 
 
-def _verdict(passed: bool | None) -> str:
-    return {True: "agrees", False: "DISAGREES", None: "no claim"}[passed]
-
-
 def summary_markdown(result: ExperimentResult, base: Path, figures: Path | None = None) -> str:
     """The experiment in a few lines: question, checks with numbers, figures. Links are
     relative to ``base``; with ``figures``, the plots are copied there first."""
@@ -85,7 +82,7 @@ def summary_markdown(result: ExperimentResult, base: Path, figures: Path | None 
             "",
         ]
     for o in result.outcomes:
-        lines.append(f"- **{_verdict(o.passed)}** ({o.check}): {o.text}")
+        lines.append(f"- **{verdict_word(o.passed)}** ({o.check}): {o.text}")
     for e in result.errors:
         lines.append(f"- **run failed**: {e}")
     lines.append("")
