@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from joint_space_control.analysis.loop_digest import LoopSample
 from joint_space_control.analysis.soak_metrics import Criterion, memory_summary
 
 #: The fault kinds the runner injects, in the order the figure gives them colours.
@@ -104,6 +105,7 @@ class Timeline:
     effort: np.ndarray
     js_bag: np.ndarray
     bags: tuple[BagSpan, ...] = ()
+    loops: tuple[LoopSample, ...] = ()  # the nodes' /diagnostics, where recorded
 
     @property
     def recovered(self) -> list[Path]:

@@ -21,6 +21,7 @@ import numpy as np
 
 from joint_space_control.analysis.bag import BagError, BagReader, state_layout
 from joint_space_control.analysis.fault_metrics import BagSpan, Timeline
+from joint_space_control.analysis.loop_digest import LoopSample, sample
 from joint_space_control.recording.recover import RecoveryError, recover
 
 #: The ``header.frame_id`` of the plant's joint states (sim_bridge leaves it empty).
@@ -33,6 +34,7 @@ def read_timeline(
     bags: Sequence[str | Path],
     state_topic: str,
     joint_states_topic: str = "/joint_states",
+    diagnostics_topic: str = "/diagnostics",
     recovered_dir: str | Path | None = None,
     log: Callable[[str], None] | None = None,
 ) -> Timeline:
@@ -43,20 +45,26 @@ def read_timeline(
     folder>/<name>_recovered`` (an existing complete copy there is read as it is). A bag that
     can be neither read nor recovered is listed with status ``unreadable`` and left out; a
     bag without one of the topics contributes no rows of it. The joints are those of the
-    first joint state; later bags are matched to them by name.
+    first joint state; later bags are matched to them by name. The nodes' ``/diagnostics``,
+    where recorded, become the timeline's ``loops``.
     """
     spans: list[BagSpan] = []
     states: list[_StateRows] = []
     plants: list[_JointRows] = []
+    loops: list[LoopSample] = []
     for path in map(Path, bags):
         read, status, detail = _readable(path, recovered_dir)
         state, plant = _StateRows(state_topic), _JointRows()
         if read is not None:
             try:
                 with BagReader(read) as bag:
-                    topics = [t for t in (state_topic, joint_states_topic) if t in bag.topics]
+                    wanted = (state_topic, joint_states_topic, diagnostics_topic)
+                    topics = [t for t in wanted if t in bag.topics]
                     for topic, log_ns, msg in bag.messages(topics):
-                        (state if topic == state_topic else plant).add(log_ns, msg)
+                        if topic == diagnostics_topic:
+                            loops.extend(_loop_samples(log_ns, msg))
+                        else:
+                            (state if topic == state_topic else plant).add(log_ns, msg)
             except BagError as err:
                 read, status, detail = None, "unreadable", str(err)
                 state, plant = _StateRows(state_topic), _JointRows()
@@ -80,7 +88,24 @@ def read_timeline(
         effort=np.concatenate([b[3] for b in blocks]) if blocks else np.empty((0, n)),
         js_bag=_cat([np.full(p.count, k, dtype=np.int64) for k, p in enumerate(plants)], int),
         bags=tuple(spans),
+        loops=tuple(loops),
     )
+
+
+def _loop_samples(log_ns: int, msg) -> list[LoopSample]:
+    """The statuses of one DiagnosticArray, received at ``log_ns``."""
+    return [
+        sample(
+            log_ns * 1e-9,
+            status.name,
+            int.from_bytes(status.level, "little")
+            if isinstance(status.level, bytes)
+            else int(status.level),
+            status.message,
+            {kv.key: kv.value for kv in status.values},
+        )
+        for status in msg.status
+    ]
 
 
 def _readable(path: Path, recovered_dir: str | Path | None) -> tuple[Path | None, str, str]:

@@ -185,6 +185,8 @@ def format_fault_report(report: dict[str, Any]) -> str:
     for c in report["criteria"]:
         mark = {True: "PASS", False: "FAIL", None: "----"}[c["met"]]
         lines.append(f"  [{mark}] {c['name']}: {c['detail']}")
+    if not report["passed"]:  # what the nodes said: which loop slowed or alarmed, and when
+        lines += ["", report["loops_text"], "", report["logged_text"]]
     lines.append(f"verdict: {'PASS' if report['passed'] else 'FAIL'}")
     return "\n".join(lines)
 

@@ -47,13 +47,17 @@ class ControlPeriod:
     T_s − T/2 after the last computed one, T the period of the states (the last stamp
     difference): the half state period absorbs stamp rounding and jitter, so with states
     every T the realised period is the multiple k·T nearest to T_s (k ≥ 1). When T does
-    not divide T_s, ``indivisible`` is set (the owner warns once);
+    not divide T_s, ``indivisible`` is set (the owner warns once), judged only once T is
+    steady (:data:`STEADY` equal differences in a row: a gap while a node starts, or a
+    state lost, is not the states' period);
     ``realised`` is the last realised period [s] (None until two periods were computed).
     T_s = 0: every state is computed.
     """
 
     #: |T_s/T − round(T_s/T)| above this: T does not divide T_s (stamps are whole ns).
     DIVIDES = 1e-3
+    #: Stamp differences equal (to DIVIDES of them) in a row before T is judged.
+    STEADY = 3
 
     def __init__(self, period: float = 0.0) -> None:
         self.period = period
@@ -65,6 +69,7 @@ class ControlPeriod:
         self._last: float | None = None  # stamp of the last computed state [s]
         self._previous: float | None = None  # stamp of the previous state [s]
         self._state_period = 0.0  # between the last two states [s]
+        self._steady = 0  # equal state periods in a row
         self.realised: float | None = None
 
     def due(self, t: float) -> bool:
@@ -72,7 +77,10 @@ class ControlPeriod:
         :meth:`computed`); False: answer it with the held torque."""
         previous, self._previous = self._previous, t
         if previous is not None and t > previous:
-            self._state_period = t - previous
+            period = t - previous
+            same = abs(period - self._state_period) <= self.DIVIDES * period
+            self._steady = self._steady + 1 if same else 0
+            self._state_period = period
         if self._last is None or self.period <= 0.0:
             return True
         if previous is None or t <= previous:  # the same state again
@@ -85,6 +93,6 @@ class ControlPeriod:
         if last is None or self.period <= 0.0:
             return
         self.realised = t - last
-        if self._state_period > 0.0 and not self.indivisible:
+        if self._steady >= self.STEADY and not self.indivisible:
             ratio = self.period / self._state_period
             self.indivisible = abs(ratio - round(ratio)) > self.DIVIDES

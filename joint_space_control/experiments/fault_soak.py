@@ -56,6 +56,8 @@ from joint_space_control.analysis.fault_metrics import (
     summarize,
 )
 from joint_space_control.analysis.fault_timeline import read_timeline
+from joint_space_control.analysis.loop_digest import format_loops, loop_windows
+from joint_space_control.analysis.node_logs import format_said, said_in, tracebacks
 from joint_space_control.analysis.soak_metrics import CommandAudit, Criterion, move_targets, passed
 from joint_space_control.experiments.fault_schedule import KINDS, ScheduledFault, fault_schedule
 from joint_space_control.experiments.harness.domains import lease_domain
@@ -77,11 +79,15 @@ from joint_space_control.recording.bag_writer import FLUSH_PERIOD
 from joint_space_control.ros.wire import JointStateImage
 
 #: Topics the recorder keeps (the controller's ``~/state`` is added by name).
-RECORDED = ["/joint_states", "/effort_command", "/reference"]
+#: /diagnostics: each node's own account of its loop, once a second (printed when the soak
+#: fails: which loop slowed or alarmed, and when).
+RECORDED = ["/joint_states", "/effort_command", "/reference", "/diagnostics"]
 #: How long a killed controller stays dead [s] (the plant brakes after command_timeout).
 DEAD_TIME = 1.0
 #: The rogue commander: how long [s], how often [Hz], and at what fraction of the limits.
 ROGUE_TIME, ROGUE_RATE, ROGUE_FRACTION = 5.0, 200.0, 0.9
+#: The rogue's torque changes sign every ROGUE_FLIP [s]: whichever way the arm would go.
+ROGUE_FLIP = 0.5
 #: CPU hogs [s]; the second /clock [s] and its rate [Hz].
 HOG_TIME = 10.0
 CLOCK_TIME, CLOCK_RATE = 2.0, 100.0
@@ -324,13 +330,12 @@ class FaultSoak:
             pub = node.create_publisher(JointState, "effort_command", 10)
             effort = ROGUE_FRACTION * self.limits
             before = self.observer.others
-            end = time.monotonic() + ROGUE_TIME
-            sign = 1.0
-            while time.monotonic() < end:
+            start = time.monotonic()
+            while (elapsed := time.monotonic() - start) < ROGUE_TIME:
+                sign = 1.0 if int(elapsed / ROGUE_FLIP) % 2 == 0 else -1.0  # a push, then a pull
                 msg = JointState(name=self.joints, effort=(sign * effort).tolist())
                 msg.header.frame_id = "/rogue_commander"
                 pub.publish(msg)
-                sign = -sign if int(time.monotonic() * 2) % 2 else sign
                 self.wait(1.0 / ROGUE_RATE)
             record.detail = f"{self.observer.others - before} rogue commands sent"
 
@@ -411,7 +416,7 @@ class FaultSoak:
         t = np.arange(1, HUGE_POINTS + 1) * 1e-3
         wiggle = 0.01 * np.sin(2 * np.pi * 0.5 * t)[:, None]
         positions = target + wiggle * np.ones(len(self.joints))
-        self.observer._ref_pub.publish(_trajectory(self.joints, positions, t))
+        self.observer.send_reference(_trajectory(self.joints, positions, t))
         self.wait(1.0)
         record.detail = f"{HUGE_POINTS} points over {t[-1]:g} s"
 
@@ -531,16 +536,6 @@ def _port_open(port: int) -> bool:
         return False
 
 
-def tracebacks(logs: Path) -> dict[str, int]:
-    """Every node log of the run with a Python traceback in it, and how many."""
-    found = {}
-    for path in sorted(logs.rglob("*.log")):
-        count = path.read_text(errors="replace").count("Traceback (most recent call last)")
-        if count:
-            found[path.name] = count
-    return found
-
-
 def run(
     out: Path, options: FaultSoakOptions = FaultSoakOptions(), log: Callable[[str], None] = print
 ) -> dict[str, Any]:
@@ -572,6 +567,8 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
     memory = incarnation_memory(series, thresholds.warmup_s)
     criteria = fault_verdict(faults, assessment, timeline.bags, thresholds, memory)
     found = tracebacks(out / "logs")
+    loops = loop_windows(timeline.loops, soak.started)
+    logged = said_in(out / "logs")
     criteria.append(
         Criterion(
             "no traceback in any node's log",
@@ -659,6 +656,11 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
             for key, (t, rss) in soak.memory.items()
         },
         "tracebacks": found,
+        # what each node said: its loop per 10 s (/diagnostics), its log's warnings
+        "loops": {name: [asdict(w) for w in rows] for name, rows in loops.items()},
+        "loops_text": format_loops(loops),
+        "logged": {name: [asdict(g) for g in groups] for name, groups in logged.items()},
+        "logged_text": format_said(logged),
         "thresholds": asdict(thresholds),
         "figure": str(figure),
         "criteria": [{"name": c.name, "met": c.met, "detail": c.detail} for c in criteria],

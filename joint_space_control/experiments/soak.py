@@ -203,6 +203,10 @@ class SoakObserver(RosClient):
                 time_from_start=Duration(sec=sec, nanosec=nsec),
             )
         ]
+        self.send_reference(msg)
+
+    def send_reference(self, msg: JointTrajectory) -> None:
+        """A whole reference, as the generator sends it."""
         self._ref_pub.publish(msg)
 
     def close(self) -> None:

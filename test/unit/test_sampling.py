@@ -88,6 +88,16 @@ def test_a_period_the_states_do_not_divide_is_flagged_and_rounded(period, every)
     assert hold.realised == pytest.approx(every * MS, abs=1e-12)
 
 
+def test_a_gap_in_the_states_is_not_their_period():
+    """States every 1 ms with one 28 ms gap (a node starting while the plant runs, as a
+    restarted controller does): the 1 ms period divides itself, nothing is flagged (the
+    gap was once flagged as 'the realised period is 28 ms')."""
+    stamps = np.concatenate([[0.0, MS], 29 * MS + np.arange(20) * MS])
+    computed, hold = computed_states(MS, stamps)
+    assert computed == list(range(len(stamps)))
+    assert not hold.indivisible
+
+
 def test_no_period_computes_every_state_and_a_repeated_stamp_is_not_a_new_period():
     computed, _ = computed_states(0.0, np.arange(5) * MS)
     assert computed == [0, 1, 2, 3, 4]
