@@ -24,8 +24,10 @@ time does not advance without a command, so there is nothing to time out.
 
 One commander at a time (:mod:`sim_bridge.ownership`): the commands' ``header.frame_id``
 names their sender; valid commands from another one than the owner are refused and counted
-(``rejected.foreign_commands``) until the owner is silent for ``command_timeout``, leaves the
-graph, or ``~/release`` is called. Every command received is judged (a drained queue of 16).
+(``rejected.foreign_commands``) until the owner is silent for ``owner_timeout`` (at least
+``command_timeout``: a stall of the owner brakes the arm but does not hand it to anyone
+else), leaves the graph, or ``~/release`` is called. Every command received is judged (a
+drained queue of 16).
 
 Services: ``~/reset`` (initial configuration, at rest; time keeps running forward),
 ``~/pause``, ``~/resume`` and ``~/release`` (std_srvs/Trigger).
@@ -148,6 +150,7 @@ class SimBridge(Node):
         self.substeps = substeps
         self.period_ns = substeps * self.physics_dt_ns
         self.command_timeout = params.value(v, "command_timeout")
+        self.owner_timeout = params.value(v, "owner_timeout")
         self.reject_factor = params.value(v, "reject_factor")
         republish = params.value(v, "republish_period")
         self.lock = threading.Lock()  # world and time, shared with the realtime thread
@@ -285,6 +288,7 @@ class SimBridge(Node):
         changed = {p.name for p in changes}
         try:
             timeout = params.value(values, "command_timeout")
+            owner_timeout = params.value(values, "owner_timeout")
             reject_factor = params.value(values, "reject_factor")
             pause_at = self._pause_time(values)
             by_robot = changed_by_robot((r.name for r in self.robots), changed)
@@ -300,6 +304,7 @@ class SimBridge(Node):
             for apply in updates:
                 apply()
             self.command_timeout = timeout
+            self.owner_timeout = owner_timeout
             self.reject_factor = reject_factor
             if "pause_at" in changed:
                 self._pause_at_ns = pause_at
@@ -454,7 +459,7 @@ class SimBridge(Node):
             # one commander at a time: its silence is measured on simulation time in
             # realtime (as the brakes), on wall time in lockstep (time waits for commands)
             now = self._t_ns * 1e-9 if self.mode == "realtime" else time.monotonic()
-            if not robot.admit(sender, now, self.command_timeout):
+            if not robot.admit(sender, now, max(self.owner_timeout, self.command_timeout)):
                 return
             if self.mode == "realtime":
                 robot.tau, robot.tau_t_ns = tau, self._t_ns

@@ -6,9 +6,10 @@ controllers put their fully qualified node name there; ``""`` is an unnamed send
 first valid command claims the plant; from then on commands from anyone else are refused
 (never applied) until the owner lets go:
 
-- it stops commanding for ``timeout`` (in the plant's time base: simulation time in
-  realtime, where the brakes engage at the same moment, wall time in lockstep, where time
-  does not advance without commands);
+- it stops commanding for ``timeout`` (sim_bridge's ``owner_timeout``, at least its
+  ``command_timeout``, in the plant's time base: simulation time in realtime, wall time in
+  lockstep, where time does not advance without commands). The brakes engage at
+  ``command_timeout`` already: an owner that stalls is braked, not replaced;
 - it leaves the graph (the node its name names no longer publishes commands);
 - someone calls ``~/release``.
 

@@ -61,6 +61,15 @@ WORLD_PARAMETERS = params.REALTIME_PARAMETERS + (
         maximum=60.0,
     ),
     params.ParamSpec(
+        "owner_timeout",
+        1.0,
+        "Another commander may claim the plant once its owner has sent no valid command for "
+        "this long (at least command_timeout; the brakes engage at command_timeout)",
+        unit="s",
+        **POSITIVE,
+        maximum=60.0,
+    ),
+    params.ParamSpec(
         "republish_period",
         0.5,
         "Lockstep: send an unanswered state again after this wall time",

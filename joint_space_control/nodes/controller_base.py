@@ -117,6 +117,7 @@ from joint_space_control.ros.wire import (
     JointStateReader,
     fill_images,
 )
+from joint_space_control.staleness import MAX_AGE, Lag
 from joint_space_control.throttle import ThrottledLog
 from joint_space_control.time_jumps import BackwardJumps
 from joint_space_control.trajectories.reference import Trajectory
@@ -128,6 +129,7 @@ COUNTERS = (
     "rejected.parameters",
     "dropped.nonfinite_torques",
     "stale.stops",
+    "stale.joint_states",
     "restarts",
     "beyond_bound.torques",
     "clock.backward_jumps",
@@ -199,6 +201,7 @@ class JointController(Node):
         # time going back once is a restarted simulator; back and forth, two of them
         self._clock_jumps = BackwardJumps()
         self._state_jumps = BackwardJumps()
+        self._lag = Lag()  # how far behind the plant the joint states are taken
         self._jumps_said: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -471,6 +474,18 @@ class JointController(Node):
 
     def _on_joint_state(self, raw: bytes, info: dict[str, int]) -> None:
         start = time.perf_counter_ns()
+        if self._lag.too_old(info["source_timestamp"], time.time_ns()):
+            # a backlog the plant's writer re-sends to a controller that fell behind: an
+            # arm that is no longer there; dropped, the controller catches up (staleness.py)
+            self.counts["stale.joint_states"] += 1
+            self._log.warning(
+                "stale joint states",
+                lambda: (
+                    f"dropped joint states more than {MAX_AGE * 1e3:g} ms old: this controller "
+                    f"fell behind the plant ({self._lag.dropped} so far)"
+                ),
+            )
+            return
         try:
             stamp, (q, dq) = self._reader.read(raw)
         except ValueError as err:
