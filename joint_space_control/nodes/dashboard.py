@@ -301,7 +301,7 @@ class Dashboard(Node):
             self._describe(node)
 
     def _add_robot(self, key: str, topic: str, plant: str) -> None:
-        robot = RobotState(key, topic, plant, Window(0, self._window))
+        robot = RobotState(key, topic, plant, self._new_window(0))
         with self._lock:
             self._robots[key] = robot
         self.create_subscription(
@@ -309,7 +309,7 @@ class Dashboard(Node):
         )
 
     def _add_controller(self, node: str, key: str, reference: str | None) -> None:
-        ctrl = ControllerState(node, key, reference, Window(0, self._window))
+        ctrl = ControllerState(node, key, reference, self._new_window(0))
         with self._lock:
             self._controllers[node] = ctrl
         self.create_subscription(
@@ -553,13 +553,21 @@ class Dashboard(Node):
         return None
 
     # -- incoming samples ----------------------------------------------------------------
+    def _new_window(self, channels: int) -> Window:
+        """A window of ``channels`` series holding what the plots show: ``window`` seconds
+        at ``sample_rate``, twice over (a simulation up to twice slower than real time still
+        fills its window). A fixed 20,000 rows made the resident memory climb for minutes
+        as they were first written (the fault soak's hour counted it as growth)."""
+        capacity = max(100, math.ceil(2.0 * self._window / self.sample_period))
+        return Window(channels, self._window, capacity)
+
     def _on_joint_state(self, robot: RobotState, msg: JointState) -> None:
         n = len(msg.name)
         if not robot.joints:
             if n == 0 or len(msg.position) != n:
                 return
             robot.joints = tuple(msg.name)
-            robot.window = Window(2 * n, self._window)
+            robot.window = self._new_window(2 * n)
         if tuple(msg.name) != robot.joints or len(msg.position) != n:
             return
         effort = msg.effort if len(msg.effort) == n else [math.nan] * n
@@ -575,7 +583,7 @@ class Dashboard(Node):
         joints = tuple(config.get("joints", ()))
         if joints != ctrl.joints:
             ctrl.joints = joints
-            ctrl.window = Window(len(STATE_FIELDS) * len(joints), self._window)
+            ctrl.window = self._new_window(len(STATE_FIELDS) * len(joints))
 
     def _on_state(self, ctrl: ControllerState, msg: Float64MultiArray) -> None:
         n = len(ctrl.joints)
