@@ -150,7 +150,9 @@ class FaultThresholds:
     max_lost_inside: int = 0
     #: Stamp period of the plant's states [ns].
     period_ns: int = PERIOD_NS
-    #: Largest RSS growth of a process incarnation after its warm-up [MB/h].
+    #: Largest RSS growth of a process incarnation after its warm-up [MB/h]: its Theil–Sen
+    #: slope (steady growth; one high-water mark at a fault is reported as a step, not
+    #: judged as growth).
     max_slope_mb_per_hour: float = 30.0
     #: An incarnation's slope is judged only over at least this long after its warm-up [min].
     min_span_min: float = 5.0
@@ -520,7 +522,8 @@ class MemorySeries:
 def incarnation_memory(series: Sequence[MemorySeries], warmup_s: float) -> list[dict[str, Any]]:
     """:func:`.soak_metrics.memory_summary` of each incarnation, its times counted from its
     own first sample (so the warm-up of ``warmup_s`` [s] follows every restart), plus the
-    growth slope per hour ``slope_mb_per_hour`` = 60 · ``slope_mb_per_min`` [MB/h]."""
+    growth slopes per hour [MB/h]: ``slope_mb_per_hour`` (least squares) and
+    ``median_slope_mb_per_hour`` (Theil–Sen, the one judged)."""
     rows = []
     for s in series:
         t = np.asarray(s.times, dtype=float)
@@ -531,6 +534,7 @@ def incarnation_memory(series: Sequence[MemorySeries], warmup_s: float) -> list[
                 "incarnation": s.incarnation,
                 **summary,
                 "slope_mb_per_hour": summary["slope_mb_per_min"] * 60.0,
+                "median_slope_mb_per_hour": summary["median_slope_mb_per_min"] * 60.0,
             }
         )
     return rows
@@ -539,16 +543,17 @@ def incarnation_memory(series: Sequence[MemorySeries], warmup_s: float) -> list[
 def worst_growth(
     rows: Sequence[dict[str, Any]], min_span_min: float
 ) -> dict[str, dict[str, Any] | None]:
-    """Per process name, its incarnation with the steepest growth among those whose samples
-    after the warm-up span at least ``min_span_min`` [min] (None when none does)."""
+    """Per process name, its incarnation with the steepest growth (Theil–Sen) among those
+    whose samples after the warm-up span at least ``min_span_min`` [min] (None when none
+    does)."""
     out: dict[str, dict[str, Any] | None] = {}
     for row in rows:
         out.setdefault(row["name"], None)
-        slope = row["slope_mb_per_hour"]
+        slope = row["median_slope_mb_per_hour"]
         if row["span_min"] < min_span_min or math.isnan(slope):
             continue
         best = out[row["name"]]
-        if best is None or slope > best["slope_mb_per_hour"]:
+        if best is None or slope > best["median_slope_mb_per_hour"]:
             out[row["name"]] = row
     return out
 
@@ -641,10 +646,12 @@ def fault_verdict(
         if row is None:
             met, detail = None, f"not judged: no incarnation spans {th.min_span_min:g} min"
         else:
-            met = row["slope_mb_per_hour"] <= th.max_slope_mb_per_hour
+            met = row["median_slope_mb_per_hour"] <= th.max_slope_mb_per_hour
             detail = (
-                f"{row['slope_mb_per_hour']:+.2f} MB/h over {row['span_min']:.1f} min "
-                f"(incarnation {row['incarnation']}; limit {th.max_slope_mb_per_hour:g})"
+                f"{row['median_slope_mb_per_hour']:+.2f} MB/h over {row['span_min']:.1f} min "
+                f"(incarnation {row['incarnation']}; limit {th.max_slope_mb_per_hour:g}; "
+                f"least squares {row['slope_mb_per_hour']:+.1f} MB/h, largest step "
+                f"{row['largest_step_mb']:+.1f} MB at {row['largest_step_s']:.0f} s)"
             )
         out.append(Criterion(f"memory growth of {name}", met, detail))
     return out

@@ -46,12 +46,47 @@ def slope_per_minute(times_s: Sequence[float], values: Sequence[float]) -> float
     return float(dt @ (y - y.mean())) / ss * 60.0
 
 
+def median_slope_per_minute(
+    times_s: Sequence[float], values: Sequence[float], points: int = 600
+) -> float:
+    r"""Theil–Sen slope of ``values`` over ``times_s`` [s], per minute: the median of the
+    slopes (yⱼ − yᵢ)/(tⱼ − tᵢ) over every pair i < j (of at most ``points`` samples, evenly
+    thinned). Steady growth gives its rate; a single step (an allocator's high-water mark
+    at one fault) gives 0, since at most half of the pairs straddle it; steps that recur
+    through the series make most pairs straddle one and show as growth. NaN with fewer than
+    two distinct times."""
+    t = np.asarray(times_s, dtype=float)
+    y = np.asarray(values, dtype=float)
+    if t.size > points:
+        keep = np.linspace(0, t.size - 1, points).round().astype(int)
+        t, y = t[keep], y[keep]
+    i, j = np.triu_indices(t.size, k=1)
+    dt = t[j] - t[i]
+    ok = dt > 0
+    if not ok.any():
+        return math.nan
+    return float(np.median((y[j] - y[i])[ok] / dt[ok])) * 60.0
+
+
+def largest_step(times_s: Sequence[float], values: Sequence[float]) -> tuple[float, float]:
+    """The largest rise between two consecutive samples and the time [s] of the later one
+    ((0, NaN) with fewer than two samples)."""
+    y = np.asarray(values, dtype=float)
+    if y.size < 2:
+        return 0.0, math.nan
+    rise = np.diff(y)
+    k = int(np.argmax(rise))
+    return float(max(rise[k], 0.0)), float(np.asarray(times_s, dtype=float)[k + 1])
+
+
 def memory_summary(
     times_s: Sequence[float], rss_bytes: Sequence[float], warmup_s: float
 ) -> dict[str, Any]:
     """RSS figures of one process [MB]: at the first sample after the warm-up (``start``),
     at the last (``end``), the largest over the whole run (``max``), the growth slope after
-    the warm-up [MB/min] and the time span that slope covers [min]."""
+    the warm-up [MB/min] (least squares, and Theil–Sen: ``median_slope_mb_per_min``), its
+    largest rise between two samples (``largest_step_mb``, at ``largest_step_s``) and the
+    time span the slopes cover [min]."""
     t = np.asarray(times_s, dtype=float)
     y = np.asarray(rss_bytes, dtype=float) / MB
     after = t >= warmup_s
@@ -66,6 +101,9 @@ def memory_summary(
         "first_mb": float(y[0]) if y.size else nan,
         "growth_mb": float(ya[-1] - ya[0]) if ya.size else nan,
         "slope_mb_per_min": slope_per_minute(ta, ya),
+        "median_slope_mb_per_min": median_slope_per_minute(ta, ya),
+        "largest_step_mb": largest_step(ta, ya)[0],
+        "largest_step_s": largest_step(ta, ya)[1],
         "span_min": float(ta[-1] - ta[0]) / 60.0 if ta.size else 0.0,
     }
 

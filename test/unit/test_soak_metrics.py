@@ -13,6 +13,8 @@ from joint_space_control.analysis.soak_metrics import (
     CommandAudit,
     Thresholds,
     UpdateTally,
+    largest_step,
+    median_slope_per_minute,
     memory_summary,
     move_targets,
     numeric_values,
@@ -188,3 +190,20 @@ def test_thresholds_are_parameters():
     report = _report(memory__controller__slope_mb_per_min=0.5)
     assert passed(verdict(report))
     assert not passed(verdict(report, Thresholds(max_slope_mb_per_min=0.4)))
+
+
+def test_the_median_slope_ignores_one_step_but_not_steady_or_recurring_growth():
+    """Theil–Sen (the fault soak's memory criterion): a process that grows 40 MB once, at a
+    fault (an allocator's high-water mark), is flat; one that grows 40 MB/h steadily, or
+    by 10 MB at every one of six faults, grows."""
+    t = np.arange(0.0, 3600.0, 2.0)
+    step = 200.0 + 40.0 * (t > 1700.0)
+    steady = 200.0 + 40.0 * t / 3600.0
+    stairs = 200.0 + 10.0 * np.floor(t / 600.0)
+    assert median_slope_per_minute(t, step) == 0.0
+    assert slope_per_minute(t, step) * 60.0 > 50.0  # least squares counts the step
+    assert median_slope_per_minute(t, steady) * 60.0 == pytest.approx(40.0, rel=1e-9)
+    assert median_slope_per_minute(t, stairs) * 60.0 > 30.0
+    assert largest_step(t, step) == (40.0, 1702.0)
+    summary = memory_summary(t, step * MB, warmup_s=60.0)
+    assert summary["median_slope_mb_per_min"] == 0.0 and summary["largest_step_mb"] == 40.0
