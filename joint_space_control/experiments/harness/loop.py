@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from std_msgs.msg import Float64MultiArray
 
 from joint_space_control.experiments.harness.client import RosClient
 from joint_space_control.experiments.harness.domains import lease_domain
@@ -122,6 +123,9 @@ class ClosedLoop:
                 check=self.group.check_alive, reference_subscribers=1 + (record is not None)
             )
             if record is not None:
+                for r in self.robots:  # how many states the recorder must have, at least
+                    state_topic = _absolute(r.name, f"{r.controller}/state")[0]
+                    self.probe.count(Float64MultiArray, state_topic)
                 run_topics = ["/clock"]
                 for r in self.robots:
                     run_topics += _absolute(
@@ -198,11 +202,11 @@ class ClosedLoop:
         plant is paused by then. The recorder's ``~/flush`` answers what it has recorded per
         topic: the wait ends once it holds, of each robot, every joint state and ``/clock``
         message the simulator published (and every true state, when it publishes them) and
-        at least the commands the probe received, and its counts of the run's topics have
-        then not changed for RECORD_QUIET (a controller's ``~/state``, one per control
-        period, goes out with its command). Under load the recorder takes its topics
-        unevenly: seen, the joint states complete while 300 of 3000 controller states were
-        still on their way."""
+        at least the commands and the controllers' ``~/state`` messages the probe received,
+        and its counts of the run's topics have then not changed for RECORD_QUIET. Under load
+        the recorder takes its topics unevenly: seen, the joint states complete while 300 of
+        3000 controller states were still on their way, and (before the states were counted)
+        a bag closed with 11 of 34 states of a sampled-period run."""
         if self.bag is None:
             return
         expected: dict[str, int] = {}
@@ -214,6 +218,7 @@ class ClosedLoop:
             expected[_absolute(r.name, TRUTH_TOPIC)[0]] = n  # if published at all
             expected[_absolute(r.name, "effort_command")[0]] = self.probe.commands[r.name]
         expected["/clock"] = max(expected.values())
+        expected.update(self.probe.counted)  # each controller's ~/state the probe received
         deadline = time.monotonic() + timeout
         previous: dict[str, int] | None = None
         since = time.monotonic()

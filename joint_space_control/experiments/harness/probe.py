@@ -89,6 +89,7 @@ class LoopProbe(RosClient):
         self._observed = ControlPath(self.node)
         self.answered = dict.fromkeys(self.namespaces, -1)  # newest stamp on effort_command
         self.commands = dict.fromkeys(self.namespaces, 0)  # commands received
+        self.counted: dict[str, int] = {}  # messages of the topics count() was asked for
         self._ref_pubs = {}
         for ns in self.namespaces:
             self._observed.subscription(
@@ -116,6 +117,16 @@ class LoopProbe(RosClient):
         self._observed.subscription(
             msg_type, topic, lambda msg, info=None: callback(msg), RECORD_QOS
         )
+
+    def count(self, msg_type: type, topic: str) -> None:
+        """Count the messages of a topic in ``counted[topic]``, taken serialized and not
+        read (a controller's ``~/state``: how many the recorder must have, at least)."""
+        self.counted[topic] = 0
+
+        def on_message(raw: bytes, info: object = None) -> None:
+            self.counted[topic] += 1
+
+        self._observed.subscription(msg_type, topic, on_message, RECORD_QOS, raw=True)
 
     @staticmethod
     def _on_state(rec: Recording, msg: JointState, info: object = None) -> None:
