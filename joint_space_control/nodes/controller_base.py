@@ -202,6 +202,7 @@ class JointController(Node):
         self._clock_jumps = BackwardJumps()
         self._state_jumps = BackwardJumps()
         self._lag = Lag()  # how far behind the plant the joint states are taken
+        self._realtime_plant = False  # known to be realtime (plant_mode): Lag judged
         self._jumps_said: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -277,9 +278,9 @@ class JointController(Node):
         self._diagnostics = LoopDiagnostics(
             self, self.loop_stats, spec.name, self._diagnostic_values, self._alarm
         )
-        self._watcher = None
-        if self.trigger_parameter == "auto":
-            self._watcher = PlantModeWatcher(self, "joint_states", self._on_plant_mode)
+        # the plant's mode, whatever the trigger: stale states are dropped only behind a
+        # realtime plant (a lockstep plant waits for the answer to the state it sent)
+        self._watcher = PlantModeWatcher(self, "joint_states", self._on_plant_mode)
         self.get_logger().info(
             f"{node_name}: {spec.name}, joints {list(self.joints)}, "
             + self._trigger_text()
@@ -474,7 +475,7 @@ class JointController(Node):
 
     def _on_joint_state(self, raw: bytes, info: dict[str, int]) -> None:
         start = time.perf_counter_ns()
-        if self._lag.too_old(info["source_timestamp"], time.time_ns()):
+        if self._realtime_plant and self._lag.too_old(info["source_timestamp"], time.time_ns()):
             # a backlog the plant's writer re-sends to a controller that fell behind: an
             # arm that is no longer there; dropped, the controller catches up (staleness.py)
             self.counts["stale.joint_states"] += 1
@@ -585,8 +586,11 @@ class JointController(Node):
 
     # -- trigger: auto -----------------------------------------------------------------
     def _on_plant_mode(self, trigger: str, reason: str) -> None:
-        """The plant mode watcher decided (executor thread): hand over to the control path."""
-        self.control_path.post(lambda: self._set_trigger(trigger, reason))
+        """The plant mode watcher decided (executor thread): hand over to the control path.
+        ``trigger`` is "state" behind a lockstep plant, "timer" behind any other."""
+        self._realtime_plant = trigger == "timer"
+        if self.trigger_parameter == "auto":
+            self.control_path.post(lambda: self._set_trigger(trigger, reason))
 
     def _set_trigger(self, trigger: str, reason: str) -> None:
         """Switch to ``trigger`` (control-path thread)."""
