@@ -11,9 +11,8 @@ which costs microseconds, so the reader catches up within a fraction of a second
 The age of a message is its delay — receive time minus its source timestamp, both wall
 clocks — less the smallest delay seen so far: the smallest is the transport's own delay plus
 the offset between the two machines' clocks, so the age means the same across machines
-whose clocks differ. A lockstep plant waits for the answer and never runs ahead, so its
-states are never stale unless the controller itself stalled for longer than the bound: the
-state is then dropped and the plant sends it again (``republish_period``) and it is answered.
+whose clocks differ. The controller judges it only behind a plant known to run in realtime:
+a lockstep plant waits for the answer to the one state it sent, however late it is taken.
 """
 
 from __future__ import annotations
