@@ -91,6 +91,7 @@ def memory_summary(
     y = np.asarray(rss_bytes, dtype=float) / MB
     after = t >= warmup_s
     ta, ya = t[after], y[after]
+    step_mb, step_s = largest_step(ta, ya)
     nan = math.nan
     return {
         "samples": int(t.size),
@@ -102,8 +103,8 @@ def memory_summary(
         "growth_mb": float(ya[-1] - ya[0]) if ya.size else nan,
         "slope_mb_per_min": slope_per_minute(ta, ya),
         "median_slope_mb_per_min": median_slope_per_minute(ta, ya),
-        "largest_step_mb": largest_step(ta, ya)[0],
-        "largest_step_s": largest_step(ta, ya)[1],
+        "largest_step_mb": step_mb,
+        "largest_step_s": step_s,
         "span_min": float(ta[-1] - ta[0]) / 60.0 if ta.size else 0.0,
     }
 
