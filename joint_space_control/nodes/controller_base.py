@@ -99,6 +99,7 @@ from joint_space_control.ros.messages import (
     CONFIG_QOS,
     CONTROL_PUBLISHER_QOS,
     CONTROL_QOS,
+    REALTIME_STATE_QOS,
     REFERENCE_QOS,
     STATE_FIELDS,
     JointOrder,
@@ -269,9 +270,10 @@ class JointController(Node):
         self.control_path.subscription(
             JointTrajectory, "reference", self._on_reference, REFERENCE_QOS, raw=True
         )
-        self._state_topic = self.control_path.subscription(
+        self._state_sub = self.control_path.subscription(
             JointState, "joint_states", self._on_joint_state, CONTROL_QOS, raw=True
-        ).topic_name
+        )  # best effort once the plant is known to run in realtime (_follow_plant)
+        self._state_topic = self._state_sub.topic_name
         if self.trigger_parameter != "state":
             self._timer = self.control_path.timer(1.0 / rate, self._on_timer)
         self.control_path.take_clock()  # after the states: a tick is not delayed by it
@@ -589,8 +591,18 @@ class JointController(Node):
         """The plant mode watcher decided (executor thread): hand over to the control path.
         ``trigger`` is "state" behind a lockstep plant, "timer" behind any other."""
         self._realtime_plant = trigger == "timer"
+        self.control_path.post(self._follow_plant)
         if self.trigger_parameter == "auto":
             self.control_path.post(lambda: self._set_trigger(trigger, reason))
+
+    def _follow_plant(self) -> None:
+        """The joint states' QoS for the plant's mode (control path): reliable behind a
+        lockstep plant, which waits for the answer to each state; best effort behind a
+        realtime one, so that a controller that stalled takes the newest state, not the
+        writer's backlog (REALTIME_STATE_QOS)."""
+        qos = REALTIME_STATE_QOS if self._realtime_plant else CONTROL_QOS
+        if self._state_sub.qos_profile != qos:
+            self._state_sub = self.control_path.resubscribe(self._state_sub, qos)
 
     def _set_trigger(self, trigger: str, reason: str) -> None:
         """Switch to ``trigger`` (control-path thread)."""

@@ -171,6 +171,27 @@ class ControlPath:
         self.node.destroy_subscription(given)
         return True
 
+    def resubscribe(self, sub: Subscription, qos: QoSProfile) -> Subscription:
+        """``sub`` again with another QoS, in its place in the order (control-path thread:
+        the loop then rebuilds its wait set); returns the new subscription. A message may
+        come on both while they overlap, none is missed."""
+        entry = next(e for e in self._subscriptions if e.sub is sub)
+        new = self.node.create_subscription(
+            sub.msg_type,
+            sub.topic_name,
+            entry.callback,
+            qos,
+            callback_group=self.group,
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+            raw=sub.raw,
+        )
+        self._subscriptions = [
+            _Entry(new, e.callback, e.drain) if e.sub is sub else e for e in self._subscriptions
+        ]
+        self._changed()
+        self.node.destroy_subscription(sub)
+        return new
+
     def destroy_subscription(self, sub: Subscription) -> None:
         """Remove a subscription of the control path and destroy it (rclpy defers that
         until the loop has let go of it)."""

@@ -29,6 +29,17 @@ CONTROL_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+#: A controller's joint states behind a plant known to run in realtime: only the newest
+#: matters, and a reliable reader that fell seconds behind (a stalled or starved process) is
+#: handed what it missed in order and slowly: measured, a reader stopped for 6 s then took
+#: ~10 states a second, 5-10 s old, for good. Best effort, as sensor data is: the newest
+#: state, at once.
+REALTIME_STATE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
 #: The plant's command subscriptions: every command received is judged (a foreign or broken
 #: one is counted, docs/safety.md), so none may be overwritten in the queue by the next one
 #: before the plant takes it; the newest valid command is the one held.

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rclpy.qos import ReliabilityPolicy
 from std_msgs.msg import String
 
 from joint_space_control.experiments.harness.probe import LoopProbe
@@ -51,6 +52,21 @@ class Nodes:
             [name], until=lambda d: until(d[name]), timeout=timeout, check=self.group.check_alive
         )[name]
 
+    def state_reliability(self, controller: str, expected: ReliabilityPolicy) -> None:
+        """Wait until the controller's joint_states reader has ``expected`` reliability (it
+        subscribes again once the plant's mode is known)."""
+
+        def readers() -> list:
+            infos = self.probe.node.get_subscriptions_info_by_topic("/joint_states")
+            return [i.qos_profile.reliability for i in infos if i.node_name == controller]
+
+        self.probe.spin_until(
+            lambda: readers() == [expected],
+            10.0,
+            f"{controller}'s joint_states reader {expected.name}",
+            self.group.check_alive,
+        )
+
     def close(self) -> None:
         try:
             self.probe.close()
@@ -83,6 +99,8 @@ def test_lockstep_plant_runs_with_a_controller_on_sim_time_only(nodes, controlle
     nodes.probe.run_until(2.0, 60.0, nodes.group.check_alive)
     status = nodes.status(f"{controller}: control loop", lambda s: s["trigger"] == "state")
     assert status["trigger_parameter"] == "auto" and status["commanding"] == 1
+    # a lockstep plant waits for the answer to each state: none may be lost
+    nodes.state_reliability(controller, ReliabilityPolicy.RELIABLE)
     nodes.probe.spin_until(
         lambda: nodes.configs.get(controller, {}).get("kp") is not None,
         10.0,
@@ -115,6 +133,9 @@ def test_realtime_plant_is_commanded_by_a_controller_with_nothing_set(nodes, con
         f"{controller}: control loop", lambda s: s["trigger"] == "timer", timeout=30.0
     )
     assert status["commanding"] == 1 and status["stale.stops"] == 0
+    # behind a realtime plant only the newest state matters: a stalled controller is not
+    # handed the writer's backlog (REALTIME_STATE_QOS)
+    nodes.state_reliability(controller, ReliabilityPolicy.BEST_EFFORT)
     sim = nodes.status(SIM, lambda s: s["braking"] == 0 and s["sim_time_s"] > 1.5, 30.0)
     assert sim["brake.engaged"] == 0  # never timed out once commanding
     nodes.probe.spin_for(0.3)
