@@ -78,15 +78,18 @@ class CdrFraming:
     rclpy (Fast CDR) reserves 4 bytes of alignment for every *empty* sequence of 8-byte
     values and sends them as trailing bytes: a JointState with empty velocity and effort
     arrives 8 bytes longer than its content. ``ros2 bag`` copes, but rosbags and other
-    strict readers reject the message ("CDR message size mismatch"). Parsing the message
-    with the typestore's deserializer gives the true end of the content.
+    strict readers reject the message ("CDR message size mismatch"). Walking the message's
+    fields gives the true end of the content: little-endian CDR (what rclpy sends) with the
+    typestore's generated size walk, which skips over arrays without building the message
+    (a 100,000-point reference: 0.2 s instead of 1.4 s of parsing, during which the
+    recorder took nothing else); big-endian with its deserializer.
     """
 
     def __init__(self, typestore: Typestore, msgtype: str) -> None:
         msgdef = typestore.get_msgdef(msgtype)
         self._typestore = typestore
         self._cls = msgdef.cls
-        self._le = msgdef.deserialize_cdr_le
+        self._walk = msgdef.getsize_cdr_to_ros1  # (input, ipos, _, opos, typestore) -> ends
         self._be = msgdef.deserialize_cdr_be
         self.msgtype = msgtype
 
@@ -98,9 +101,12 @@ class CdrFraming:
         """
         if len(raw) < 4 or raw[0] != 0 or raw[1] not in (0, 1):
             raise SerdeError(f"invalid CDR header for {self.msgtype}")
-        parse = self._le if raw[1] else self._be
+        body = memoryview(raw)[4:]
         try:
-            _, end = parse(memoryview(raw)[4:], 0, self._cls, self._typestore)
+            if raw[1]:
+                end, _ = self._walk(body, 0, None, 0, self._typestore)
+            else:
+                _, end = self._be(body, 0, self._cls, self._typestore)
         except (struct.error, ValueError, IndexError, UnicodeDecodeError) as err:
             raise SerdeError(f"cannot parse {self.msgtype}: {err}") from err
         end += 4

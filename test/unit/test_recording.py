@@ -68,6 +68,27 @@ def test_framing_leaves_a_well_formed_message_untouched():
     assert CdrFraming(TYPESTORE, JS).frame(raw) == raw
 
 
+def test_framing_a_long_reference_ends_where_its_deserializer_ends():
+    """The size walk (no message built) and the deserializer agree on where the content of a
+    1000-point reference with empty velocity, acceleration and effort sequences ends."""
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    kind = "trajectory_msgs/msg/JointTrajectory"
+    msg = JointTrajectory(joint_names=["a", "b", "c"])
+    for k in range(1000):
+        point = JointTrajectoryPoint(positions=[0.001 * k, -1.0, 2.5])
+        point.time_from_start = Duration(sec=k // 1000, nanosec=(k % 1000) * 1_000_000)
+        msg.points.append(point)
+    raw = serialize_message(msg)
+    framed = CdrFraming(TYPESTORE, kind).frame(raw)
+    msgdef = TYPESTORE.get_msgdef(kind)
+    _, end = msgdef.deserialize_cdr_le(memoryview(raw)[4:], 0, msgdef.cls, TYPESTORE)
+    assert len(framed) == end + 4 < len(raw)  # rclpy's padding was cut
+    back = TYPESTORE.deserialize_cdr(framed, kind)
+    assert len(back.points) == 1000 and back.points[999].positions.tolist() == [0.999, -1.0, 2.5]
+
+
 @pytest.mark.parametrize(
     "raw",
     [b"", b"\x00\x01", b"\x07\x07\x00\x00" + bytes(40), command_message([1.0, 2.0])[:30]],
