@@ -187,6 +187,8 @@ def format_fault_report(report: dict[str, Any]) -> str:
         lines.append(f"  [{mark}] {c['name']}: {c['detail']}")
     if not report["passed"]:  # what the nodes said: which loop slowed or alarmed, and when
         lines += ["", report["loops_text"], "", report["logged_text"]]
+        failed = [c["name"] for c in report["criteria"] if c["met"] is False]
+        lines.append("failed: " + "; ".join(failed))  # last, where a tail of the output is
     lines.append(f"verdict: {'PASS' if report['passed'] else 'FAIL'}")
     return "\n".join(lines)
 

@@ -76,6 +76,7 @@ from joint_space_control.json_values import jsonable
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.recording.bag_writer import FLUSH_PERIOD
+from joint_space_control.ros.messages import REFERENCE_QOS
 from joint_space_control.ros.wire import JointStateImage
 
 #: Topics the recorder keeps (the controller's ``~/state`` is added by name).
@@ -110,6 +111,11 @@ HELD = ("kill_controller", "rogue_commander")
 AT_REST = ("huge_reference",)
 #: After a move's time, how long [s] the arm is given to come to rest before a held fault.
 SETTLED = 0.5
+#: A fault starts at least this long [s] after the previous one was over (its process back,
+#: its burst sent), and the run lasts at least this long after the last: on a loaded machine
+#: an injection can overrun the next fault's time, and a fault whose window ends as it is
+#: over has no time to show the loop back (judged "not back").
+QUIET = 5.0
 
 
 @dataclass(frozen=True)
@@ -179,6 +185,7 @@ class FaultSoak:
         self.runs: dict[str, int] = {}  # starts of each node so far
         self.memory: dict[str, tuple[list[float], list[int]]] = {}
         self.pids: dict[str, int] = {}
+        self._unmatched = ""  # why the restarted recorder was last found not matched
         self.crash: str | None = None
         self._moves = 0
         self._next_move = self._next_sample = 0.0
@@ -315,13 +322,18 @@ class FaultSoak:
     def _kill_recorder(self, record: Injected) -> None:
         self.kill("recorder")
         self.start("recorder")
-        self.wait_until(self._recorder_matched, "the restarted recorder's subscriptions")
+        self._unmatched = "no answer yet"
+        try:
+            self.wait_until(self._recorder_matched, "the restarted recorder's subscriptions")
+        except TimeoutError as err:  # say which: a topic unmatched, or no answer at all
+            raise TimeoutError(f"{err} (last: {self._unmatched})") from None
         record.detail = f"recording into {self.bags[-1].name}"
 
     def _recorder_matched(self) -> bool:
         try:
             wait_recorder_matched(self.observer, self.topics, self.group.check_alive, 0.5)
-        except TimeoutError:
+        except TimeoutError as err:
+            self._unmatched = " ".join(str(err).split())
             return False
         return True
 
@@ -416,8 +428,15 @@ class FaultSoak:
         t = np.arange(1, HUGE_POINTS + 1) * 1e-3
         wiggle = 0.01 * np.sin(2 * np.pi * 0.5 * t)[:, None]
         positions = target + wiggle * np.ones(len(self.joints))
-        self.observer.send_reference(_trajectory(self.joints, positions, t))
-        self.wait(1.0)
+        msg = _trajectory(self.joints, positions, t)
+        # from a publisher of its own, gone after the fault: the generator's keeps its last
+        # references for late readers, and one of 10 MB there slowed every later match
+        with self.observer.other_node("huge_reference_publisher") as node:
+            pub = node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
+            self.wait_until(lambda: pub.get_subscription_count() >= 1, "a reference subscriber")
+            self.wait(0.5)  # matched on its side too
+            pub.publish(msg)
+            self.wait(1.0)
         record.detail = f"{HUGE_POINTS} points over {t[-1]:g} s"
 
     def _second_reference(self, record: Injected) -> None:
@@ -485,10 +504,12 @@ class FaultSoak:
                 self._t0 = time.monotonic()
                 self.started = time.time()
                 pending = list(self.schedule)
+                quiet_until = 0.0  # the previous fault's end + QUIET [s from the start]
                 try:
-                    while self.now() < options.seconds:
-                        if pending and self.now() >= pending[0].at:
+                    while pending or self.now() < max(options.seconds, quiet_until):
+                        if pending and self.now() >= max(pending[0].at, quiet_until):
                             self.injected.append(self.inject(pending.pop(0)))
+                            quiet_until = self.now() + QUIET
                         else:
                             self.tick()
                 except RuntimeError as err:  # a node exited without being killed

@@ -84,7 +84,7 @@ def test_short_fault_soak_survives_every_fault_kind_once(tmp_path):
         "--minutes", "3", "--period", "15", "--seed", "0", "--out", str(out),
     ]  # fmt: skip
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=540)
-    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-3000:]
+    assert proc.returncode == 0, proc.stdout[-8000:] + proc.stderr[-3000:]
     assert "verdict: PASS" in proc.stdout
     report = json.loads((out / "soak.json").read_text())
     assert report["passed"] is True
