@@ -106,6 +106,7 @@ def test_sigkill_mid_run_loses_at_most_a_flush_period_and_recovers(tmp_path, sto
         wait_until_on_disk(bag, 1.0, tmp_path / "probe_recovery")
         run.resume()
         run.run_until(1.5)
+        run.group.nodes.pop("recorder")  # killed on purpose: not a crash of the loop
         recorder.signal(signal.SIGKILL)  # mid-run: the loop goes on
         assert recorder.proc.wait(timeout=15) == -signal.SIGKILL
         run.pause()
