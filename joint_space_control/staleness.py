@@ -6,7 +6,10 @@ machine) is then handed every state it missed, oldest first, and answering each 
 keeps it as far behind as the writer's history is long. The fault soak's restarted
 controller answered states 10 s old for minutes that way (the plant's 10000-sample history
 at 1 kHz). A state that old describes an arm that is no longer there: it is dropped unanswered,
-which costs microseconds, so the reader catches up within a fraction of a second.
+which costs microseconds, so the reader catches up within a fraction of a second. Since
+then the controller's states are best effort behind a realtime plant
+(``REALTIME_STATE_QOS``): the writer re-sends it nothing, and what is judged here is only
+what waited in the process itself (a stalled or starved controller).
 
 The age of a message is its delay — receive time minus its source timestamp, both wall
 clocks — less the smallest delay seen so far: the smallest is the transport's own delay plus

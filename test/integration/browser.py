@@ -17,6 +17,7 @@ an older playwright nor a GPU on the machine changes what the tests render with.
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -58,9 +59,16 @@ def launch_chromium(
 def niced_chromium(folder: Path, nice: int) -> str:
     """A script in ``folder`` that starts the system Chromium at niceness ``nice``: every
     process of the browser inherits it (docs/dashboard.md: on the loop's machine, open the
-    page at the lowest priority, so that the loop and the dashboard come first)."""
+    page at the lowest priority, so that the loop and the dashboard come first).
+
+    As root, Chromium raises its browser, renderer and I/O threads to niceness -8 by itself
+    (seen with chromium 156: the renderer drawing WebGL at -8 and 35 % of a core, beside
+    a test process at 0 and the dashboard at 10, while the page test timed out waiting for
+    a click and a parameter answer); without CAP_SYS_NICE it cannot, so root's is dropped
+    (setpriv) and the niceness holds."""
+    drop = "setpriv --inh-caps=-sys_nice --bounding-set=-sys_nice " if os.geteuid() == 0 else ""
     script = folder / "chromium-niced"
-    script.write_text(f'#!/bin/sh\nexec nice -n {int(nice)} {chromium_path()} "$@"\n')
+    script.write_text(f'#!/bin/sh\nexec {drop}nice -n {int(nice)} {chromium_path()} "$@"\n')
     script.chmod(0o755)
     return str(script)
 
