@@ -428,25 +428,27 @@ class FaultSoak:
         t = np.arange(1, HUGE_POINTS + 1) * 1e-3
         wiggle = 0.01 * np.sin(2 * np.pi * 0.5 * t)[:, None]
         positions = target + wiggle * np.ones(len(self.joints))
+        # from a publisher of its own, destroyed after the fault, not the generator's (whose
+        # writer keeps its last references): with the 10 MB one there, a restarted recorder
+        # was twice not matched with the generator within 60 s (not understood further)
         msg = _trajectory(self.joints, positions, t)
-        # from a publisher of its own, gone after the fault: the generator's keeps its last
-        # references for late readers, and one of 10 MB there slowed every later match
-        with self.observer.other_node("huge_reference_publisher") as node:
+        self._publish_reference("huge_reference_publisher", msg, after=1.0)
+        record.detail = f"{HUGE_POINTS} points over {t[-1]:g} s"
+
+    def _second_reference(self, record: Injected) -> None:
+        other = self.targets[self._moves % 2]
+        msg = _trajectory(self.joints, [other], [MOVE_TIME])
+        self._publish_reference("second_reference_publisher", msg, after=0.5)
+
+    def _publish_reference(self, name: str, msg: JointTrajectory, after: float) -> None:
+        """``msg`` on ``reference`` from a node ``name`` of its own, once a subscriber is
+        matched; the node is kept ``after`` [s] more, then destroyed."""
+        with self.observer.other_node(name) as node:
             pub = node.create_publisher(JointTrajectory, "reference", REFERENCE_QOS)
             self.wait_until(lambda: pub.get_subscription_count() >= 1, "a reference subscriber")
             self.wait(0.5)  # matched on its side too
             pub.publish(msg)
-            self.wait(1.0)
-        record.detail = f"{HUGE_POINTS} points over {t[-1]:g} s"
-
-    def _second_reference(self, record: Injected) -> None:
-        with self.observer.other_node("second_reference_publisher") as node:
-            pub = node.create_publisher(JointTrajectory, "reference", 10)
-            self.wait_until(lambda: pub.get_subscription_count() >= 1, "a reference subscriber")
-            self.wait(0.5)  # matched on its side too
-            other = self.targets[self._moves % 2]
-            pub.publish(_trajectory(self.joints, [other], [MOVE_TIME]))
-            self.wait(0.5)
+            self.wait(after)
 
     def _cpu_hogs(self, record: Injected) -> None:
         cores = os.cpu_count() or 1

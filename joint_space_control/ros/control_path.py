@@ -130,19 +130,7 @@ class ControlPath:
         """A subscription of the control path; taken in the order of creation when several
         are ready. ``callback(message, info)``; ``raw`` delivers the serialized bytes;
         ``drain`` takes every queued message at each wake-up (not just one)."""
-        # Without QoS event handlers: rmw_fastrtps wakes every wait set that holds one of a
-        # subscription's events on each of its messages, so handlers served by the executor
-        # would cost a full executor wake-up per message (measured: ~1 ms of CPU). A
-        # publisher with an incompatible QoS still hears about it on its side.
-        sub = self.node.create_subscription(
-            msg_type,
-            topic,
-            callback,
-            qos,
-            callback_group=self.group,
-            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
-            raw=raw,
-        )
+        sub = self._create(msg_type, topic, callback, qos, raw)
         self._subscriptions = [*self._subscriptions, _Entry(sub, callback, drain)]
         self._changed()
         return sub
@@ -176,21 +164,30 @@ class ControlPath:
         the loop then rebuilds its wait set); returns the new subscription. A message may
         come on both while they overlap, none is missed."""
         entry = next(e for e in self._subscriptions if e.sub is sub)
-        new = self.node.create_subscription(
-            sub.msg_type,
-            sub.topic_name,
-            entry.callback,
-            qos,
-            callback_group=self.group,
-            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
-            raw=sub.raw,
-        )
+        new = self._create(sub.msg_type, sub.topic_name, entry.callback, qos, sub.raw)
         self._subscriptions = [
             _Entry(new, e.callback, e.drain) if e.sub is sub else e for e in self._subscriptions
         ]
         self._changed()
         self.node.destroy_subscription(sub)
         return new
+
+    def _create(
+        self, msg_type: Any, topic: str, callback: Callable, qos: QoSProfile, raw: bool
+    ) -> Subscription:
+        # Without QoS event handlers: rmw_fastrtps wakes every wait set that holds one of a
+        # subscription's events on each of its messages, so handlers served by the executor
+        # would cost a full executor wake-up per message (measured: ~1 ms of CPU). A
+        # publisher with an incompatible QoS still hears about it on its side.
+        return self.node.create_subscription(
+            msg_type,
+            topic,
+            callback,
+            qos,
+            callback_group=self.group,
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+            raw=raw,
+        )
 
     def destroy_subscription(self, sub: Subscription) -> None:
         """Remove a subscription of the control path and destroy it (rclpy defers that
