@@ -109,7 +109,7 @@ from joint_space_control.ros.messages import (
     state_message,
     trajectory_from_bytes,
 )
-from joint_space_control.ros.plant_mode import PlantModeWatcher
+from joint_space_control.ros.plant_mode import PLANT_SEEN, PlantModeWatcher
 from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.reference_worker import ReferenceBuilder
 from joint_space_control.ros.wire import (
@@ -370,6 +370,8 @@ class JointController(Node):
             "commanding": int(not self._silent),
             "control_period": self._control_period(),
             "velocity": (self.core.velocity_used or self.core.sampling.velocity).value,
+            "plant": PLANT_SEEN[self._watcher.decision],
+            "joint_states_reliability": self._state_sub.qos_profile.reliability.name.lower(),
             **self.counts,
             **self.realtime.diagnostics(),
         }
@@ -597,10 +599,13 @@ class JointController(Node):
 
     def _follow_plant(self) -> None:
         """The joint states' QoS for the plant's mode (control path): reliable behind a
-        lockstep plant, which waits for the answer to each state; best effort behind a
-        realtime one, so that a controller that stalled takes the newest state, not the
-        writer's backlog (REALTIME_STATE_QOS)."""
-        qos = REALTIME_STATE_QOS if self._realtime_plant else CONTROL_QOS
+        lockstep plant, which waits for the answer to each state, and whenever the trigger
+        is set to ``state`` (each state is answered: none may be lost, and subscribing again
+        would lose those sent while the new reader is matched); best effort behind a
+        realtime plant otherwise, so that a controller that stalled takes the newest state,
+        not the writer's backlog (REALTIME_STATE_QOS)."""
+        newest_only = self._realtime_plant and self.trigger_parameter != "state"
+        qos = REALTIME_STATE_QOS if newest_only else CONTROL_QOS
         if self._state_sub.qos_profile != qos:
             self._state_sub = self.control_path.resubscribe(self._state_sub, qos)
 

@@ -37,6 +37,9 @@ ANSWER_TIMEOUT = 2.0
 #: What a publisher without an answer counts as.
 NO_ANSWER = ""
 
+#: The decision as /diagnostics names the plant (``plant``).
+PLANT_SEEN = {None: "unknown", "state": "lockstep", "timer": "not_lockstep"}
+
 Key = tuple[str, str, bytes]  # node namespace, node name, endpoint gid
 
 

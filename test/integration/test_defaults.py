@@ -13,13 +13,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rclpy.qos import ReliabilityPolicy
+from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from joint_space_control.experiments.harness.probe import LoopProbe
 from joint_space_control.experiments.harness.processes import ProcessGroup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.ros.messages import CONFIG_QOS
+from joint_space_control.ros.messages import CONFIG_QOS, CONTROL_QOS
 
 from .conftest import next_domain_id
 
@@ -136,12 +137,33 @@ def test_realtime_plant_is_commanded_by_a_controller_with_nothing_set(nodes, con
     # behind a realtime plant only the newest state matters: a stalled controller is not
     # handed the writer's backlog (REALTIME_STATE_QOS)
     nodes.state_reliability(controller, ReliabilityPolicy.BEST_EFFORT)
+    status = nodes.status(f"{controller}: control loop", lambda s: True)
+    assert status["plant"] == "not_lockstep"
+    assert status["joint_states_reliability"] == "best_effort"
     sim = nodes.status(SIM, lambda s: s["braking"] == 0 and s["sim_time_s"] > 1.5, 30.0)
     assert sim["brake.engaged"] == 0  # never timed out once commanding
     nodes.probe.spin_for(0.3)
     _, q, _, tau = nodes.probe.recording.arrays()
     assert np.max(np.abs(q[-1])) < 2e-2, q[-1]  # held under gravity
     assert np.abs(tau[-1]).max() > 1.0  # by torques, not by the brakes alone
+
+
+def test_a_controller_answering_each_state_keeps_its_reader_reliable(nodes):
+    """trigger: state behind a publisher that is not a lockstep plant (here the probe, which
+    has no ``mode``): the controller answers each state, so its joint_states reader stays
+    reliable once the plant is judged (subscribing again, best effort, lost states that
+    tests publishing their own states waited for, in CI)."""
+    controller = "pd_gravity_controller"
+    nodes.start(controller, {"trigger": "state"})
+    nodes.probe.node.create_publisher(JointState, "joint_states", CONTROL_QOS)
+    name = f"{controller}: control loop"
+    status = nodes.status(name, lambda s: s["plant"] == "not_lockstep")
+    assert status["trigger"] == "state"
+    # the decision is followed on the control path: give it time to act, then look
+    nodes.probe.spin_for(2.0)
+    status = nodes.status(name, lambda s: True)
+    assert status["joint_states_reliability"] == "reliable"
+    nodes.state_reliability(controller, ReliabilityPolicy.RELIABLE)
 
 
 def test_lockstep_plant_warns_about_a_timer_controller_on_sim_time(nodes):
