@@ -81,7 +81,7 @@ from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
 from joint_space_control.ros.graph import node_names
 from joint_space_control.ros.loop_statistics import LoopStatistics
-from joint_space_control.ros.messages import COMMAND_QOS, CONTROL_PUBLISHER_QOS
+from joint_space_control.ros.messages import COMMAND_QOS, CONTROL_PUBLISHER_QOS, paused_message
 from joint_space_control.ros.node_main import run_node
 from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.wire import clock_bytes
@@ -182,6 +182,7 @@ class SimBridge(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._t_ns = 0
+        self._last_state_ns: int | None = None  # stamp of the last state sent (~/pause says)
         self._awaiting: int | None = None  # lockstep: stamp of the state waiting for answer
         self._sent_wall = 0.0
         self._awaiting_since = 0.0  # when the awaited state was first published (monotonic)
@@ -364,6 +365,7 @@ class SimBridge(Node):
         self._sent_at[slot] = time.perf_counter_ns()
         for robot in self.robots:
             robot.publish_state(self._t_ns)
+        self._last_state_ns = self._t_ns
         if self.mode == "lockstep" and self._pause_at_ns is not None:
             if self._t_ns >= self._pause_at_ns:
                 # Paused with this state out: its answer is ignored; ~/resume sends the
@@ -636,7 +638,8 @@ class SimBridge(Node):
             self._awaiting = None
             for robot in self.robots:
                 robot.answer = None
-        response.success, response.message = True, "paused"
+            last = self._last_state_ns  # no state goes out after this, paused
+        response.success, response.message = True, paused_message(last)
         return response
 
     def _on_resume(self, request: Trigger.Request, response: Trigger.Response) -> Any:

@@ -364,3 +364,24 @@ def state_message(joints: Sequence[str]) -> Float64MultiArray:
     ]
     msg.layout.data_offset = 1
     return msg
+
+
+#: ``~/pause``'s answer names the stamp of the last joint state the plant sent (an observer
+#: then waits for that state, not for a quiet spell that a loaded machine can fake).
+PAUSED_PREFIX = "paused; last state stamped "
+
+
+def paused_message(stamp_ns: int | None) -> str:
+    """The plant's answer to ``~/pause``: ``paused; last state stamped <ns> ns``."""
+    return "paused" if stamp_ns is None else f"{PAUSED_PREFIX}{stamp_ns} ns"
+
+
+def paused_stamp(message: str) -> int | None:
+    """The last state's stamp [ns] in a ``~/pause`` answer (None: none sent, or a plant
+    that does not say)."""
+    if not message.startswith(PAUSED_PREFIX):
+        return None
+    try:
+        return int(message[len(PAUSED_PREFIX) :].split()[0])
+    except (IndexError, ValueError):
+        return None

@@ -52,9 +52,10 @@ def test_recorded_run_reads_back_with_both_readers(make_loop, tmp_path):
     loop = make_loop(ROBOT, record=bag)
     loop.start(JOINTS[ROBOT], [SETPOINTS[ROBOT]])
     loop.run_until(1.5)
-    loop.pause()
+    last = loop.pause()
     loop.settle_recording()  # the recorder takes the tail (a loaded machine delays it)
     t, q, _, _ = loop.probe.recording.arrays()
+    assert t[-1] == last * 1e-9  # the probe holds the state the plant's pause answer names
     loop.close()
 
     by_rosbags = read_with_rosbags(bag)

@@ -14,6 +14,8 @@ from joint_space_control.ros.messages import (
     JointOrder,
     effort_arrays,
     joint_state_arrays,
+    paused_message,
+    paused_stamp,
     state_message,
 )
 from joint_space_control.ros.wire import (
@@ -185,3 +187,14 @@ def test_clock_bytes_are_what_rclpy_serializes(ns):
     assert clock_bytes(ns) == serialize_message(msg)
     back = deserialize_message(clock_bytes(ns), Clock)
     assert back.clock.sec * 1_000_000_000 + back.clock.nanosec == ns
+
+
+@pytest.mark.parametrize("stamp_ns", [0, 1, 2_016_000_000, 10**18])
+def test_the_pause_answer_names_the_last_state_and_reads_back(stamp_ns):
+    assert paused_stamp(paused_message(stamp_ns)) == stamp_ns
+
+
+@pytest.mark.parametrize("message", ["paused", "", "paused; last state stamped x ns", "running"])
+def test_a_pause_answer_without_a_stamp_reads_as_none(message):
+    assert paused_stamp(message) is None
+    assert paused_message(None) == "paused"

@@ -27,6 +27,7 @@ from joint_space_control.experiments.harness.probe import LoopProbe, in_namespac
 from joint_space_control.experiments.harness.processes import ProcessGroup
 from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.recording.selection import world_topics
+from joint_space_control.ros.messages import paused_stamp
 
 #: After the recorder's subscriptions are matched with the run's publishers, the time
 #: given to the publishers' side of those matches [s]: seen lagging by about 30 ms (a
@@ -38,6 +39,8 @@ MATCH_MARGIN = 0.5
 RECORD_POLL = 0.1
 RECORD_QUIET = 0.5
 RECORD_SETTLE_MAX = 60.0
+#: Longest wait [s] for the probe to take the states up to the one a pause named.
+PAUSE_TAIL_MAX = 60.0
 #: A recorder whose counts stay short of the run's and unchanged this long [s] has missed
 #: messages for good (not worth waiting RECORD_SETTLE_MAX for).
 RECORD_GAVE_UP = 15.0
@@ -175,20 +178,31 @@ class ClosedLoop:
         if not response.success:
             raise RuntimeError(f"sim_bridge did not resume: {response.message}")
 
-    def pause(self, settle: float = 0.3) -> None:
+    def pause(self, settle: float = 0.3) -> int | None:
         """Pause the simulator and collect what is still in flight: afterwards the probe's
-        last joint state is the last one the simulator published."""
+        last joint state is the last one the simulator published. Returns that state's
+        stamp [ns] as the simulator's answer names it."""
         response = self.probe.call_trigger("/sim_bridge/pause")
         if not response.success:
             raise RuntimeError(f"sim_bridge did not pause: {response.message}")
-        # until no state came for ``settle`` seconds: the probe may lag a loop that runs
+        # the last state the plant sent, named in its answer: a quiet spell alone once ended
+        # the wait with the probe 128 states short of it on a loaded machine
+        last = paused_stamp(response.message)
+        if last is not None:
+            self.probe.spin_until(
+                lambda: self.probe.latest_time() >= last * 1e-9,
+                PAUSE_TAIL_MAX,
+                f"the probe to take the states up to the pause at {last * 1e-9:.3f} s",
+                self.group.check_alive,
+            )
+        # then until no state came for ``settle`` seconds: the probe may lag a loop that runs
         # faster than real time by more than that
         stamps = self.probe.recording.stamps
         for _ in range(100):
             seen = len(stamps)
             self.probe.spin_for(settle)
             if len(stamps) == seen:
-                return
+                return last
         raise RuntimeError("joint states still coming after the simulator paused")
 
     def final_state(self) -> tuple[np.ndarray, np.ndarray]:
