@@ -31,6 +31,17 @@ CONNECTED_TEXT = "joint_space_control"
 PLOTTING_TEXT = "Plots"
 
 
+def without_sys_nice() -> list[str]:
+    """The command prefix that starts a program without CAP_SYS_NICE when this process is
+    root (nothing otherwise). As root, Chromium raises its browser, renderer and I/O threads
+    to niceness -8 by itself (seen with chromium 156: the renderer drawing WebGL at -8 and
+    35 % of a core beside the loop, while the page test timed out waiting for a click);
+    without the capability it cannot, and the niceness it was started at holds."""
+    if os.geteuid() != 0 or shutil.which("setpriv") is None:
+        return []
+    return ["setpriv", "--inh-caps=-sys_nice", "--bounding-set=-sys_nice"]
+
+
 def missing() -> str | None:
     """Why no page can be opened here (chromium or playwright missing), or None."""
     if shutil.which("chromium") is None:
@@ -73,10 +84,10 @@ class OpenPage:
 @contextmanager
 def page_open(url: str, timeout: float = 60.0, nice: int = 0) -> Iterator[OpenPage]:
     """The page at ``url`` open and connected in headless Chromium until leaving, the
-    browser's processes at niceness ``nice``; raises :class:`PageError` when it does not
-    connect within ``timeout``."""
+    browser's processes at niceness ``nice`` (held: :func:`without_sys_nice`); raises
+    :class:`PageError` when it does not connect within ``timeout``."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", __name__, url, str(timeout)],
+        [*without_sys_nice(), sys.executable, "-m", __name__, url, str(timeout)],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

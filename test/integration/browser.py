@@ -17,7 +17,6 @@ an older playwright nor a GPU on the machine changes what the tests render with.
 
 from __future__ import annotations
 
-import os
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -29,7 +28,7 @@ import pytest
 
 # Chromium's switches (software WebGL on SwiftShader, no sandbox: see the module docstring),
 # one list for the tests and the bench
-from joint_space_control.bench.browser import CHROMIUM_ARGS
+from joint_space_control.bench.browser import CHROMIUM_ARGS, without_sys_nice
 
 if TYPE_CHECKING:
     from playwright.sync_api import Browser, Playwright
@@ -59,14 +58,9 @@ def launch_chromium(
 def niced_chromium(folder: Path, nice: int) -> str:
     """A script in ``folder`` that starts the system Chromium at niceness ``nice``: every
     process of the browser inherits it (docs/dashboard.md: on the loop's machine, open the
-    page at the lowest priority, so that the loop and the dashboard come first).
-
-    As root, Chromium raises its browser, renderer and I/O threads to niceness -8 by itself
-    (seen with chromium 156: the renderer drawing WebGL at -8 and 35 % of a core, beside
-    a test process at 0 and the dashboard at 10, while the page test timed out waiting for
-    a click and a parameter answer); without CAP_SYS_NICE it cannot, so root's is dropped
-    (setpriv) and the niceness holds."""
-    drop = "setpriv --inh-caps=-sys_nice --bounding-set=-sys_nice " if os.geteuid() == 0 else ""
+    page at the lowest priority, so that the loop and the dashboard come first), without
+    CAP_SYS_NICE so that the niceness holds (:func:`without_sys_nice`)."""
+    drop = "".join(f"{word} " for word in without_sys_nice())
     script = folder / "chromium-niced"
     script.write_text(f'#!/bin/sh\nexec {drop}nice -n {int(nice)} {chromium_path()} "$@"\n')
     script.chmod(0o755)

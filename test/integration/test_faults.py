@@ -47,10 +47,8 @@ class Rig:
         self.group = ProcessGroup(workdir, self.domain_id)
         self.probe = LoopProbe(self.domain_id, name="fault_probe")
         self.commands: list[tuple[int, list[float]]] = []
-        self.probe.observe(
-            JointState,
-            "effort_command",
-            lambda m: self.commands.append((stamp_to_ns(m.header.stamp), list(m.effort))),
+        self.probe.command_listeners.append(
+            lambda _ns, m: self.commands.append((stamp_to_ns(m.header.stamp), list(m.effort)))
         )
 
     def publisher(self, msg_type: type, topic: str, subscribers: int = 1):

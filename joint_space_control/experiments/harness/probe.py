@@ -89,6 +89,9 @@ class LoopProbe(RosClient):
         self._observed = ControlPath(self.node)
         self.answered = dict.fromkeys(self.namespaces, -1)  # newest stamp on effort_command
         self.commands = dict.fromkeys(self.namespaces, 0)  # commands received
+        # called with (namespace, command) for each command taken: a caller keeping every
+        # command reads the probe's own (one deserialization, not a second subscription)
+        self.command_listeners: list[Callable[[str, JointState], None]] = []
         self.counted: dict[str, int] = {}  # messages of the topics count() was asked for
         self._ref_pubs = {}
         for ns in self.namespaces:
@@ -138,6 +141,8 @@ class LoopProbe(RosClient):
     def _on_command(self, namespace: str, msg: JointState, info: object = None) -> None:
         self.answered[namespace] = max(self.answered[namespace], stamp_to_ns(msg.header.stamp))
         self.commands[namespace] += 1
+        for listener in self.command_listeners:
+            listener(namespace, msg)
 
     # -- spinning ----------------------------------------------------------------------
     def spin_once(self) -> None:
