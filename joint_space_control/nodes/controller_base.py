@@ -90,6 +90,7 @@ from joint_space_control.control.sampling import VelocitySource
 from joint_space_control.laws.gains import GainChoice
 from joint_space_control.laws.limits import beyond_bound, joints_beyond
 from joint_space_control.laws.plausible import PlausibleStates
+from joint_space_control.memory import give_back_free_memory
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.ros import parameters as params
 from joint_space_control.ros.control_path import ControlPath
@@ -111,7 +112,7 @@ from joint_space_control.ros.messages import (
 )
 from joint_space_control.ros.plant_mode import PLANT_SEEN, PlantModeWatcher
 from joint_space_control.ros.realtime_threads import RealtimeThreads
-from joint_space_control.ros.reference_worker import ReferenceBuilder
+from joint_space_control.ros.reference_worker import IN_THREAD_BYTES, ReferenceBuilder
 from joint_space_control.ros.wire import (
     Float64ArrayImage,
     JointStateImage,
@@ -418,8 +419,9 @@ class JointController(Node):
 
     def _on_reference(self, raw: bytes, info: Any = None) -> None:
         """A reference's bytes (control path). With ``trigger: state`` (lockstep: time waits
-        for the answer) it is validated and splined here, before the next state is
-        answered, so a run does not depend on timing; otherwise the reference thread has it
+        for the answer) it is validated and splined before the next state is answered (a
+        large one in the builder's process, waited for), so a run does not depend on
+        timing; otherwise the reference thread has it
         built (:class:`~joint_space_control.ros.reference_worker.ReferenceBuilder`: a large
         one in a process of its own, so the loop never shares the interpreter with it) and
         the trajectory is swapped in between two ticks once ready: the tick never waits."""
@@ -428,7 +430,17 @@ class JointController(Node):
             return
         now = self._now()
         if self.trigger == "state":
-            self._take_reference(self._build_reference(raw, now), self._generation)
+            if len(raw) <= IN_THREAD_BYTES:
+                self._take_reference(self._build_reference(raw, now), self._generation)
+                return
+            # a large one in the builder's process, waited for: its hundreds of thousands
+            # of objects are read there, not spread over this process's memory for good
+            # (a controller stepped up 180 MB over six 100,000-point references; flat now)
+            built = self._reference_builder.build(
+                raw, self.joints, now, self.model.position_limits
+            )
+            self._take_reference(built, self._generation)
+            give_back_free_memory()  # what taking it freed (the transfer, the old pages)
             return
         try:
             self._reference_thread.submit(self._prepare_reference, raw, now, self._generation)

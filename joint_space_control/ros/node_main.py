@@ -18,6 +18,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from joint_space_control.memory import large_blocks_from_the_system
 from joint_space_control.ros.control_path import spin_node
 
 #: The environment variable that names the process that started a node
@@ -97,6 +98,7 @@ def run_node(
     # test). Here a signal stops the loops; the threads leave their waits; then the node is
     # closed and the context shut down (stop latency: one wait, at most 0.2 s).
     init(args, signal_handler_options=SignalHandlerOptions.NO)
+    large_blocks_from_the_system()  # a large message's memory goes back when freed
     stopping = threading.Event()
     node = None
 

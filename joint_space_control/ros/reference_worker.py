@@ -38,6 +38,7 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
+from joint_space_control.memory import give_back_free_memory
 from joint_space_control.ros.messages import JointOrder, trajectory_from_bytes
 from joint_space_control.trajectories.reference import Trajectory
 
@@ -152,6 +153,7 @@ def serve(conn: Connection) -> None:
             return  # the node closed the pipe or is gone
         result = build_reference(raw, joints, now, limits)
         del raw
+        give_back_free_memory()  # the message's objects, freed: this process stays small
         try:
             if isinstance(result, str):
                 conn.send(("rejected", result))

@@ -212,11 +212,15 @@ class Reference:
         self._v, self._a = np.empty(shape), np.empty(shape)
         self._filled = 0  # rows [0, _filled) are final
         computed = size > 1 and not tr.accelerations_given
-        self._fill_rows = self._given
+        # the class's function, not a bound method: an instance holding a method of its
+        # own is a reference cycle, freed only by the cyclic collector, which a node's
+        # control loop rarely runs (gc.freeze, few allocations): replaced references and
+        # their arrays (~30 MB for 100,000 points) then stayed for minutes
+        self._fill_rows = Reference._given
         if computed and tr.velocities_given:
-            self._fill_rows = self._mean_cubic
+            self._fill_rows = Reference._mean_cubic
         elif computed and tr.basis is not None:  # prepared ahead: combined, not solved
-            self._fill_rows = self._combined
+            self._fill_rows = Reference._combined
         elif computed:  # a global solve: every row now
             self._given(0, size)
             self._v, self._a = _clamped_cubic_spline(
@@ -273,7 +277,7 @@ class Reference:
         """Make at least ``rows`` rows final, a whole block at a time."""
         high = min(self._size, max(rows, self._filled + self.BLOCK))
         if high > self._filled:
-            self._fill_rows(self._filled, high)
+            self._fill_rows(self, self._filled, high)
             self._filled = high
 
     def _given(self, low: int, high: int) -> None:

@@ -17,8 +17,8 @@ ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("joint_space_control", "sim_bridge")
 
 # Low → high. A module may import from its own layer and the layers below it.
-# - arrays, paths, json_values, enums, machine, scheduling, throttle, time_jumps, staleness: no
-#   knowledge of robots, control or ROS;
+# - arrays, paths, json_values, enums, machine, memory, scheduling, throttle, time_jumps,
+#   staleness: no knowledge of robots, control or ROS;
 # - model, laws, trajectories: the maths of the robot and the control laws;
 # - control: the controllers themselves (configuration, state, step), no ROS;
 # - analysis, recording: bags and metrics (rosbags, matplotlib; no running ROS graph);
@@ -41,6 +41,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "joint_space_control.json_values",
         "joint_space_control.enums",
         "joint_space_control.machine",
+        "joint_space_control.memory",
         "joint_space_control.scheduling",
         "joint_space_control.throttle",
         "joint_space_control.time_jumps",
