@@ -4,12 +4,16 @@ the controller's reference process (ros/reference_worker.py) while the control l
 its usual timing, and the plant's brakes never engage.
 
 Judged on the controller's /diagnostics windows (1 s each): the loop's period p99 over the
-windows while the reference is received, built and started stays that of the windows before
-(median of the window p99s within 1.5×), and no period reaches 50 ms. Measured on this 2-core
-machine with plant, controller and probe running: p99 1.7–2.5 ms before, 1.9–2.9 ms during
-(one window 5.8 ms in one of four runs); the worst period during, 9–17 ms, is rclpy copying
-the 4 MB message when the control path takes it. Built in a thread of the controller (the
-previous design), the same run gave window p99s of 9–13 ms and worst periods of 77–122 ms;
+windows while the reference is received, built and started stays that of the six windows
+before (median of the window p99s within 2×), and no period reaches 50 ms. Measured on this
+2-core machine with plant, controller and probe running: p99 1.7–2.5 ms before, 1.9–2.9 ms
+during (one window 5.8 ms in one of four runs); the worst period during, 9–17 ms, is rclpy
+copying
+the 4 MB message when the control path takes it. The baseline itself varies: its median
+went from 1.6 to 7.1 ms between seven runs here, and CI saw 1.50× during a build (2.6 ms
+before, 3.9 ms during; the bound was then 1.5× over four windows). Built in a thread of the
+controller (the previous design), the same run gave window p99s of 9–13 ms (about 5×) and
+worst periods of 77–122 ms;
 built on the control path (before that), a 1.3 s stall that braked the plant. The plant's
 command_timeout is 1 s here so that a loaded test machine's own stalls do not brake it.
 """
@@ -33,6 +37,10 @@ Q0 = [0.3, -0.2]
 POINTS = 100_000
 CONTROLLER = "pd_gravity_controller: control loop"
 PLANT = "sim_bridge: control loop"
+#: The windows' median p99 during the build within this many times that before it: a
+#: shared 2-core machine's own variation stays inside, a build on the loop's interpreter
+#: (about 5×) does not.
+USUAL_RATIO = 2.0
 
 
 def sine_reference(points: int, period: float = 1e-3) -> JointTrajectory:
@@ -64,8 +72,8 @@ def test_a_100000_point_reference_does_not_stall_the_realtime_loop(rig: Rig):  #
     probe.node.create_subscription(
         DiagnosticArray, "/diagnostics", lambda m: windows.append(statuses(m)), 100
     )
-    probe.spin_until(  # the usual timing: four whole windows of the running loop
-        lambda: sum(CONTROLLER in w for w in windows) >= 5,
+    probe.spin_until(  # the usual timing: six whole windows of the running loop
+        lambda: sum(CONTROLLER in w for w in windows) >= 7,
         30.0,
         "diagnostics",
         rig.group.check_alive,
@@ -90,7 +98,7 @@ def test_a_100000_point_reference_does_not_stall_the_realtime_loop(rig: Rig):  #
     worst = max(w["period.max_us"] for w in during)
     print(f"period p99 before {usual} us, during {now}; worst period during {worst} us")
     assert plant[-1]["brake.engaged"] == brakes  # no brake while the reference was built
-    assert np.median(now) <= 1.5 * np.median(usual)  # the loop's usual timing
+    assert np.median(now) <= USUAL_RATIO * np.median(usual)  # the loop's usual timing
     assert worst < 50_000.0  # [µs]
     log = controller.log()
     assert "rejected" not in log and "Traceback" not in log
