@@ -366,6 +366,8 @@ def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tm
     rig.group.nodes.pop("dashboard").stop()
 
 
+@pytest.mark.long  # ~50 s of a realtime loop beside a page (make test: within 10 minutes)
+@pytest.mark.timeout(900)
 def test_two_robots_in_one_world_are_both_drawn(rig: Rig, tmp_path):  # noqa: F811
     import yaml
 
