@@ -52,6 +52,11 @@ from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, Qo
 from rosbags.interfaces import QosTime as BagQosTime
 from std_srvs.srv import Trigger
 
+from joint_space_control.memory import (
+    LARGE_BLOCK_BYTES,
+    give_back_free_memory,
+    large_blocks_from_the_system,
+)
 from joint_space_control.recording.bag_writer import (
     FLUSH_PERIOD,
     MIN_FREE_SPACE_MB,
@@ -283,6 +288,8 @@ class Recorder(Node):
                 return
             if not written and bag.error is None:
                 log.warning(malformed, "dropped a malformed {} on {}", topic.msgtype, topic.name)
+            if len(raw) >= LARGE_BLOCK_BYTES:  # a huge reference: its framing's pages back
+                give_back_free_memory()
 
         sub = self.control_path.subscription(
             msg_class, topic.name, on_message, qos, raw=True, drain=True
@@ -329,6 +336,7 @@ def main(args: list[str] | None = None) -> None:
     node_main.watch_parent), then take what the subscriptions still hold (messages
     delivered before the signal are not lost) and close the bag."""
     node_main.init(args, signal_handler_options=SignalHandlerOptions.NO)
+    large_blocks_from_the_system()  # as node_main.run_node does for the other nodes
     stop = threading.Event()
     recorder: list[Recorder] = []
     stopped_at = [0]  # system clock [ns]: what was received until then is written
