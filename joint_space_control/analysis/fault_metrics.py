@@ -20,7 +20,7 @@ The defaults of :class:`FaultThresholds` are first guesses, to be tuned against 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,7 +28,12 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.analysis.loop_digest import LoopSample
-from joint_space_control.analysis.soak_metrics import Criterion, memory_summary
+from joint_space_control.analysis.soak_metrics import (
+    MB,
+    Criterion,
+    median_slope_per_minute,
+    memory_summary,
+)
 
 #: The fault kinds the runner injects, in the order the figure gives them colours.
 KINDS = (
@@ -150,9 +155,12 @@ class FaultThresholds:
     max_lost_inside: int = 0
     #: Stamp period of the plant's states [ns].
     period_ns: int = PERIOD_NS
-    #: Largest RSS growth of a process incarnation after its warm-up [MB/h]: its Theil–Sen
-    #: slope (steady growth; one high-water mark at a fault is reported as a step, not
-    #: judged as growth).
+    #: Largest RSS growth of a process [MB/h], judged twice: each incarnation after its
+    #: warm-up between steps (Theil–Sen over pairs of samples with no step of
+    #: ``soak_metrics.STEP_MB`` between them: steady growth; a high-water mark at a fault is
+    #: reported as a step, not judged as growth), and each process over the whole run, its
+    #: incarnations' samples after their warm-ups together (Theil–Sen: steps that recur at
+    #: every fault or restart show there as growth).
     max_slope_mb_per_hour: float = 30.0
     #: An incarnation's slope is judged only over at least this long after its warm-up [min].
     min_span_min: float = 5.0
@@ -522,8 +530,9 @@ class MemorySeries:
 def incarnation_memory(series: Sequence[MemorySeries], warmup_s: float) -> list[dict[str, Any]]:
     """:func:`.soak_metrics.memory_summary` of each incarnation, its times counted from its
     own first sample (so the warm-up of ``warmup_s`` [s] follows every restart), plus the
-    growth slopes per hour [MB/h]: ``slope_mb_per_hour`` (least squares) and
-    ``median_slope_mb_per_hour`` (Theil–Sen, the one judged)."""
+    growth slopes per hour [MB/h]: ``slope_mb_per_hour`` (least squares),
+    ``median_slope_mb_per_hour`` (Theil–Sen) and ``steady_slope_mb_per_hour`` (Theil–Sen
+    between steps, the one judged)."""
     rows = []
     for s in series:
         t = np.asarray(s.times, dtype=float)
@@ -535,25 +544,53 @@ def incarnation_memory(series: Sequence[MemorySeries], warmup_s: float) -> list[
                 **summary,
                 "slope_mb_per_hour": summary["slope_mb_per_min"] * 60.0,
                 "median_slope_mb_per_hour": summary["median_slope_mb_per_min"] * 60.0,
+                "steady_slope_mb_per_hour": summary["steady_slope_mb_per_min"] * 60.0,
             }
         )
     return rows
 
 
+def run_growth(series: Sequence[MemorySeries], warmup_s: float) -> dict[str, dict[str, Any]]:
+    """Per process name, the growth of its memory over the whole run [MB/h]: the Theil–Sen
+    slope of all its incarnations' samples after their warm-ups together (the times share
+    one origin), with the span they cover [min] and the number of incarnations. A process
+    whose every restart or fault leaves it higher grows here, whatever each incarnation
+    does between its steps."""
+    samples: dict[str, tuple[list[float], list[float], int]] = {}
+    for s in series:
+        t = np.asarray(s.times, dtype=float)
+        y = np.asarray(s.rss, dtype=float) / MB
+        keep = t >= t[0] + warmup_s if t.size else np.zeros(0, dtype=bool)
+        times, values, count = samples.get(s.name, ([], [], 0))
+        samples[s.name] = (times + t[keep].tolist(), values + y[keep].tolist(), count + 1)
+    out = {}
+    for name, (times, values, count) in samples.items():
+        order = np.argsort(times, kind="stable")
+        t, y = np.asarray(times)[order], np.asarray(values)[order]
+        out[name] = {
+            "name": name,
+            "incarnations": count,
+            "samples": int(t.size),
+            "span_min": float(t[-1] - t[0]) / 60.0 if t.size else 0.0,
+            "slope_mb_per_hour": median_slope_per_minute(t, y) * 60.0,
+        }
+    return out
+
+
 def worst_growth(
     rows: Sequence[dict[str, Any]], min_span_min: float
 ) -> dict[str, dict[str, Any] | None]:
-    """Per process name, its incarnation with the steepest growth (Theil–Sen) among those
-    whose samples after the warm-up span at least ``min_span_min`` [min] (None when none
-    does)."""
+    """Per process name, its incarnation with the steepest growth between steps (Theil–Sen)
+    among those whose samples after the warm-up span at least ``min_span_min`` [min] (None
+    when none does)."""
     out: dict[str, dict[str, Any] | None] = {}
     for row in rows:
         out.setdefault(row["name"], None)
-        slope = row["median_slope_mb_per_hour"]
+        slope = row["steady_slope_mb_per_hour"]
         if row["span_min"] < min_span_min or math.isnan(slope):
             continue
         best = out[row["name"]]
-        if best is None or slope > best["median_slope_mb_per_hour"]:
+        if best is None or slope > best["steady_slope_mb_per_hour"]:
             out[row["name"]] = row
     return out
 
@@ -567,6 +604,7 @@ def fault_verdict(
     bags: Sequence[BagSpan],
     thresholds: FaultThresholds = FaultThresholds(),
     memory: Sequence[dict[str, Any]] = (),
+    run_memory: Mapping[str, dict[str, Any]] | None = None,
 ) -> list[Criterion]:
     """The criteria of a fault soak (judge with :func:`.soak_metrics.passed`):
 
@@ -577,8 +615,10 @@ def fault_verdict(
     - no plant state with an applied torque beyond the effort limits;
     - at most ``max_lost_inside`` states missing inside the bags;
     - every bag complete or recovered, and one bag per recorder incarnation;
-    - per process (``memory``: rows of :func:`incarnation_memory`): the steepest growth of
-      its incarnations long enough to judge at most ``max_slope_mb_per_hour``.
+    - per process (``memory``: rows of :func:`incarnation_memory`): the steepest growth
+      between steps of its incarnations long enough to judge at most
+      ``max_slope_mb_per_hour``, and (``run_memory``: :func:`run_growth`) its growth over
+      the run at most that too.
     """
     th = thresholds
     out = []
@@ -646,12 +686,24 @@ def fault_verdict(
         if row is None:
             met, detail = None, f"not judged: no incarnation spans {th.min_span_min:g} min"
         else:
-            met = row["median_slope_mb_per_hour"] <= th.max_slope_mb_per_hour
+            met = row["steady_slope_mb_per_hour"] <= th.max_slope_mb_per_hour
             detail = (
-                f"{row['median_slope_mb_per_hour']:+.2f} MB/h over {row['span_min']:.1f} min "
+                f"{row['steady_slope_mb_per_hour']:+.2f} MB/h over {row['span_min']:.1f} min "
                 f"(incarnation {row['incarnation']}; limit {th.max_slope_mb_per_hour:g}; "
-                f"least squares {row['slope_mb_per_hour']:+.1f} MB/h, largest step "
-                f"{row['largest_step_mb']:+.1f} MB at {row['largest_step_s']:.0f} s)"
+                f"{row['steps']} steps, {row['steps_mb']:+.1f} MB, the largest "
+                f"{row['largest_step_mb']:+.1f} MB at {row['largest_step_s']:.0f} s; "
+                f"Theil-Sen across them {row['median_slope_mb_per_hour']:+.1f} MB/h)"
             )
-        out.append(Criterion(f"memory growth of {name}", met, detail))
+        out.append(Criterion(f"memory growth of {name} between steps", met, detail))
+    for name, row in (run_memory or {}).items():
+        if row["span_min"] < th.min_span_min or math.isnan(row["slope_mb_per_hour"]):
+            met = None
+            detail = f"not judged: {row['span_min']:.1f} min after the warm-ups"
+        else:
+            met = row["slope_mb_per_hour"] <= th.max_slope_mb_per_hour
+            detail = (
+                f"{row['slope_mb_per_hour']:+.2f} MB/h over {row['span_min']:.1f} min, "
+                f"{row['incarnations']} incarnations (limit {th.max_slope_mb_per_hour:g})"
+            )
+        out.append(Criterion(f"memory growth of {name} over the run", met, detail))
     return out

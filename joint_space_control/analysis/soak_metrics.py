@@ -46,6 +46,26 @@ def slope_per_minute(times_s: Sequence[float], values: Sequence[float]) -> float
     return float(dt @ (y - y.mean())) / ss * 60.0
 
 
+def _theil_sen_per_minute(
+    t: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None, points: int = 600
+) -> float:
+    """The median of the slopes (yⱼ − yᵢ)/(tⱼ − tᵢ) [per minute] over the pairs i < j (of at
+    most ``points`` samples, evenly thinned), only pairs within one group when ``groups``
+    labels the samples; NaN without such a pair over distinct times."""
+    if t.size > points:
+        keep = np.linspace(0, t.size - 1, points).round().astype(int)
+        t, y = t[keep], y[keep]
+        groups = None if groups is None else groups[keep]
+    i, j = np.triu_indices(t.size, k=1)
+    dt = t[j] - t[i]
+    ok = dt > 0
+    if groups is not None:
+        ok &= groups[i] == groups[j]
+    if not ok.any():
+        return math.nan
+    return float(np.median((y[j] - y[i])[ok] / dt[ok])) * 60.0
+
+
 def median_slope_per_minute(
     times_s: Sequence[float], values: Sequence[float], points: int = 600
 ) -> float:
@@ -57,15 +77,28 @@ def median_slope_per_minute(
     two distinct times."""
     t = np.asarray(times_s, dtype=float)
     y = np.asarray(values, dtype=float)
-    if t.size > points:
-        keep = np.linspace(0, t.size - 1, points).round().astype(int)
-        t, y = t[keep], y[keep]
-    i, j = np.triu_indices(t.size, k=1)
-    dt = t[j] - t[i]
-    ok = dt > 0
-    if not ok.any():
-        return math.nan
-    return float(np.median((y[j] - y[i])[ok] / dt[ok])) * 60.0
+    return _theil_sen_per_minute(t, y, points=points)
+
+
+def plateaus(values: Sequence[float], step: float) -> np.ndarray:
+    """A label per sample: it changes after every rise of at least ``step`` between two
+    consecutive samples (a step), so each label is a plateau between steps."""
+    y = np.asarray(values, dtype=float)
+    if y.size == 0:
+        return np.zeros(0, dtype=int)
+    return np.concatenate([[0], np.cumsum(np.diff(y) >= step)]).astype(int)
+
+
+def steady_slope_per_minute(
+    times_s: Sequence[float], values: Sequence[float], step: float, points: int = 600
+) -> float:
+    r"""Theil–Sen slope [per minute] between steps: over the pairs of samples with no rise
+    of ``step`` or more between them (:func:`plateaus`). A process's steady growth, however
+    many one-off steps its faults cause (each step is reported on its own); NaN when no
+    plateau holds two samples at distinct times."""
+    t = np.asarray(times_s, dtype=float)
+    y = np.asarray(values, dtype=float)
+    return _theil_sen_per_minute(t, y, plateaus(y, step), points)
 
 
 def largest_step(times_s: Sequence[float], values: Sequence[float]) -> tuple[float, float]:
@@ -79,19 +112,26 @@ def largest_step(times_s: Sequence[float], values: Sequence[float]) -> tuple[flo
     return float(max(rise[k], 0.0)), float(np.asarray(times_s, dtype=float)[k + 1])
 
 
+#: A rise of at least this much [MB] between two memory samples is a step (the soaks sample
+#: every 2 s: a steady 30 MB/h is 0.017 MB a sample, a megabyte message's buffer 1-10 MB).
+STEP_MB = 2.0
+
+
 def memory_summary(
-    times_s: Sequence[float], rss_bytes: Sequence[float], warmup_s: float
+    times_s: Sequence[float], rss_bytes: Sequence[float], warmup_s: float, step_mb: float = STEP_MB
 ) -> dict[str, Any]:
     """RSS figures of one process [MB]: at the first sample after the warm-up (``start``),
     at the last (``end``), the largest over the whole run (``max``), the growth slope after
-    the warm-up [MB/min] (least squares, and Theil–Sen: ``median_slope_mb_per_min``), its
-    largest rise between two samples (``largest_step_mb``, at ``largest_step_s``) and the
-    time span the slopes cover [min]."""
+    the warm-up [MB/min] (least squares, Theil–Sen: ``median_slope_mb_per_min``, and
+    Theil–Sen between steps of ``step_mb`` or more: ``steady_slope_mb_per_min``), its steps
+    (``steps``, their sum ``steps_mb``), its largest rise between two samples
+    (``largest_step_mb``, at ``largest_step_s``) and the time span the slopes cover [min]."""
     t = np.asarray(times_s, dtype=float)
     y = np.asarray(rss_bytes, dtype=float) / MB
     after = t >= warmup_s
     ta, ya = t[after], y[after]
-    step_mb, step_s = largest_step(ta, ya)
+    largest_mb, largest_s = largest_step(ta, ya)
+    rises = np.diff(ya)
     nan = math.nan
     return {
         "samples": int(t.size),
@@ -103,8 +143,11 @@ def memory_summary(
         "growth_mb": float(ya[-1] - ya[0]) if ya.size else nan,
         "slope_mb_per_min": slope_per_minute(ta, ya),
         "median_slope_mb_per_min": median_slope_per_minute(ta, ya),
-        "largest_step_mb": step_mb,
-        "largest_step_s": step_s,
+        "steady_slope_mb_per_min": steady_slope_per_minute(ta, ya, step_mb),
+        "steps": int(np.sum(rises >= step_mb)),
+        "steps_mb": float(np.sum(rises[rises >= step_mb])),
+        "largest_step_mb": largest_mb,
+        "largest_step_s": largest_s,
         "span_min": float(ta[-1] - ta[0]) / 60.0 if ta.size else 0.0,
     }
 

@@ -53,6 +53,7 @@ from joint_space_control.analysis.fault_metrics import (
     fault_verdict,
     format_summary,
     incarnation_memory,
+    run_growth,
     summarize,
 )
 from joint_space_control.analysis.fault_timeline import read_timeline
@@ -96,6 +97,10 @@ CLOCK_TIME, CLOCK_RATE = 2.0, 100.0
 HUGE_POINTS = 100_000
 #: A process restarted must serve again within this long [s].
 BACK_TIMEOUT = 60.0
+#: What a dashboard's log says once it shows a robot with its plant (nodes/dashboard.py),
+#: and how often [s] the soak reads a restarted dashboard's log for it.
+DASHBOARD_SHOWS = "plant {plant}, controllers"
+LOG_POLL = 0.2
 #: Commands from the controller that show the loop running again after a fault.
 RUNNING_COMMANDS = 200
 #: The plant's command timeout [s] (the brakes engage after it).
@@ -466,9 +471,17 @@ class FaultSoak:
         record.detail = f"{cores} busy processes"
 
     def _kill_dashboard(self, record: Injected) -> None:
+        """Over when the restarted dashboard shows the robot with its plant (its log says
+        so), not when its page answers: a restarted dashboard once served a page without the
+        robot for 8 minutes (it had taken an unnamed endpoint for the plant)."""
         self.kill("dashboard")
         self.start("dashboard")
         self.wait_until(lambda: _port_open(self.port), "the restarted dashboard's page")
+        dashboard = self.group.nodes["dashboard"]
+        shown = DASHBOARD_SHOWS.format(plant="/sim_bridge")
+        seen = _Every(LOG_POLL, lambda: shown in dashboard.log())
+        self.wait_until(seen, f"the restarted dashboard to show the robot ({shown!r} in its log)")
+        record.detail = "robot shown with its plant /sim_bridge"
 
     def _second_clock(self, record: Injected) -> None:
         with self.observer.other_node("second_clock") as node:
@@ -550,6 +563,21 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
+class _Every:
+    """``check()`` called at most once per ``period`` [s]; the last answer in between."""
+
+    def __init__(self, period: float, check: Callable[[], bool]) -> None:
+        self.period, self.check = period, check
+        self._next, self._last = 0.0, False
+
+    def __call__(self) -> bool:
+        now = time.monotonic()
+        if now >= self._next:
+            self._next = now + self.period
+            self._last = self.check()
+        return self._last
+
+
 def _port_open(port: int) -> bool:
     """The dashboard's page answers (as a browser asks for it)."""
     try:
@@ -588,7 +616,8 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
         for key, (t, rss) in soak.memory.items()
     ]
     memory = incarnation_memory(series, thresholds.warmup_s)
-    criteria = fault_verdict(faults, assessment, timeline.bags, thresholds, memory)
+    over_run = run_growth(series, thresholds.warmup_s)
+    criteria = fault_verdict(faults, assessment, timeline.bags, thresholds, memory, over_run)
     found = tracebacks(out / "logs")
     loops = loop_windows(timeline.loops, soak.started)
     logged = said_in(out / "logs")
@@ -673,6 +702,7 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
         "other_commands": soak.observer.others,
         "bags": [asdict(b) for b in timeline.bags],
         "memory": memory,
+        "memory_over_run": over_run,
         # every sample, [s from the start, MB] per process incarnation: where it grew
         "memory_samples": {
             key: {"t": t, "rss_mb": [r / 1e6 for r in rss]}

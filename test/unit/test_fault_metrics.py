@@ -31,6 +31,7 @@ from joint_space_control.analysis.fault_metrics import (
     lost_states,
     peak_effort_ratio,
     recovery_time,
+    run_growth,
     states_lost_at_kill,
     summarize,
     tracking_error,
@@ -356,11 +357,64 @@ def test_memory_slope_per_incarnation_after_its_own_warm_up():
     result = evaluate(faults, timeline, LIMITS)
     bags = timeline.bags
     criteria = {c.name: c for c in fault_verdict(faults, result, bags, memory=rows)}
-    assert criteria["memory growth of dashboard"].met is None
+    assert criteria["memory growth of dashboard between steps"].met is None
+    assert rows[0]["steady_slope_mb_per_hour"] == pytest.approx(30.0, rel=1e-9)
     for limit, met in ((31.0, True), (29.0, False)):  # 30 MB/h
         th = FaultThresholds(max_slope_mb_per_hour=limit)
         criteria = {c.name: c for c in fault_verdict(faults, result, bags, th, rows)}
-        assert criteria["memory growth of controller"].met is met
+        assert criteria["memory growth of controller between steps"].met is met
+
+
+def test_memory_between_steps_judges_steady_growth_not_one_off_steps():
+    """An incarnation of 10 minutes that steps up 24 MB twice (a recorder's successor
+    matched, a huge reference) and is flat between is flat; one that grows 40 MB/h under
+    the same steps grows."""
+    t = EPOCH + np.arange(0.0, 600.0, 2.0)
+    steps = 24 * MB * ((t - t[0] > 200.0).astype(float) + (t - t[0] > 400.0))
+    flat = 200 * MB + steps
+    growing = flat + 40.0 / 3600.0 * MB * (t - t[0])
+    rows = incarnation_memory(
+        [MemorySeries("controller", 0, t, flat), MemorySeries("recorder", 0, t, growing)], 60.0
+    )
+    assert rows[0]["steady_slope_mb_per_hour"] == pytest.approx(0.0, abs=1e-9)
+    assert rows[0]["median_slope_mb_per_hour"] > 100.0  # across the steps: what failed before
+    assert rows[0]["steps"] == 2 and rows[0]["steps_mb"] == pytest.approx(48.0)
+    assert rows[1]["steady_slope_mb_per_hour"] == pytest.approx(40.0, rel=1e-9)
+    timeline, faults = synthetic_run(minutes=1, rate=100.0)
+    result = evaluate(faults, timeline, LIMITS)
+    criteria = {c.name: c for c in fault_verdict(faults, result, timeline.bags, memory=rows)}
+    assert criteria["memory growth of controller between steps"].met is True
+    assert criteria["memory growth of recorder between steps"].met is False
+
+
+def test_memory_over_the_run_fails_steps_that_recur_and_passes_one_pool_per_incarnation():
+    """Over the run, the incarnations together: 10 MB kept at each of six faults in one
+    incarnation grows (60 MB/h), though flat between its steps; ten incarnations that each
+    take the same 22 MB pool once, some minutes after their start, are flat."""
+    t = EPOCH + np.arange(0.0, 3600.0, 2.0)
+    stairs = 150 * MB + 10 * MB * np.floor((t - t[0]) / 600.0)
+    restarts = []
+    for k in range(10):
+        tk = EPOCH + 360.0 * k + np.arange(0.0, 350.0, 2.0)
+        restarts.append(
+            MemorySeries("controller", k, tk, 200 * MB + 22 * MB * (tk - tk[0] > 150.0))
+        )
+    series = [MemorySeries("recorder", 0, t, stairs), *restarts]
+    rows = incarnation_memory(series, 60.0)
+    assert rows[0]["steady_slope_mb_per_hour"] == pytest.approx(0.0, abs=1e-9)
+    over = run_growth(series, 60.0)
+    assert over["recorder"]["slope_mb_per_hour"] == pytest.approx(60.0, rel=0.05)
+    assert over["controller"]["incarnations"] == 10
+    assert abs(over["controller"]["slope_mb_per_hour"]) < 1.0
+    timeline, faults = synthetic_run(minutes=1, rate=100.0)
+    result = evaluate(faults, timeline, LIMITS)
+    criteria = {
+        c.name: c
+        for c in fault_verdict(faults, result, timeline.bags, memory=rows, run_memory=over)
+    }
+    assert criteria["memory growth of recorder between steps"].met is True
+    assert criteria["memory growth of recorder over the run"].met is False
+    assert criteria["memory growth of controller over the run"].met is True
 
 
 # --------------------------------------------------------------------------- figure

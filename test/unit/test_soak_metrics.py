@@ -10,6 +10,7 @@ import pytest
 
 from joint_space_control.analysis.soak_metrics import (
     MB,
+    STEP_MB,
     CommandAudit,
     Thresholds,
     UpdateTally,
@@ -20,7 +21,9 @@ from joint_space_control.analysis.soak_metrics import (
     numeric_values,
     parse_vmrss,
     passed,
+    plateaus,
     slope_per_minute,
+    steady_slope_per_minute,
     verdict,
 )
 
@@ -207,3 +210,22 @@ def test_the_median_slope_ignores_one_step_but_not_steady_or_recurring_growth():
     assert largest_step(t, step) == (40.0, 1702.0)
     summary = memory_summary(t, step * MB, warmup_s=60.0)
     assert summary["median_slope_mb_per_min"] == 0.0 and summary["largest_step_mb"] == 40.0
+
+
+def test_the_slope_between_steps():
+    """Steps of at least STEP_MB split the series into plateaus; the slope is taken within
+    them: steady growth under three steps gives its rate, three steps alone 0; a rise of
+    0.25 MB every sample (allocations below a step's size) is growth, not steps."""
+    t = np.arange(0.0, 1800.0, 2.0)
+    stairs = 24.0 * np.searchsorted([300.0, 900.0, 1500.0], t, side="right")
+    assert list(np.unique(plateaus(stairs, STEP_MB))) == [0, 1, 2, 3]
+    assert steady_slope_per_minute(t, 200.0 + stairs, STEP_MB) == 0.0
+    rising = 200.0 + stairs + 20.0 * t / 3600.0
+    assert steady_slope_per_minute(t, rising, STEP_MB) * 60.0 == pytest.approx(20.0, rel=1e-9)
+    blocks = 200.0 + 0.25 * np.arange(t.size)
+    assert plateaus(blocks, STEP_MB).max() == 0
+    assert steady_slope_per_minute(t, blocks, STEP_MB) * 60.0 == pytest.approx(450.0, rel=1e-9)
+    assert math.isnan(steady_slope_per_minute([0.0, 2.0], [0.0, 10.0], STEP_MB))  # no pair
+    summary = memory_summary(t, rising * MB, warmup_s=0.0)
+    assert summary["steps"] == 3 and summary["steps_mb"] == pytest.approx(72.0, abs=0.1)
+    assert summary["steady_slope_mb_per_min"] * 60.0 == pytest.approx(20.0, rel=1e-9)
