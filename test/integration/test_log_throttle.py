@@ -148,9 +148,11 @@ def test_each_recurring_fault_of_the_plant_logs_one_line_a_second(rig):  # noqa:
         rig.probe.spin_for(0.5)  # the plant takes what is queued (drained, depth 16)
         rig.group.check_alive()
         took[text] = time.monotonic() - start
-    status = rig.diagnostics("sim_bridge", lambda s: True)
-    assert status["rejected.commands"] > 100 and status["rejected.wrenches"] > 100, status
-    assert status["rejected.foreign_commands"] > 100, status
+    # a status published after the plant took them: the newest the probe holds may be one
+    # from before the wrenches (twice in make test's parallel part on a loaded machine)
+    counted = ("rejected.commands", "rejected.wrenches", "rejected.foreign_commands")
+    # (a TimeoutError fails the test when the counts do not reach 100 within 20 s)
+    rig.diagnostics("sim_bridge", lambda s: all(s[k] > 100 for k in counted))
 
     log = rig.group.nodes["sim_bridge"].log().splitlines()
     for text, seconds in took.items():
