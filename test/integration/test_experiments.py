@@ -120,6 +120,7 @@ ON_BOTH_ENGINES = [
 ]
 
 
+@pytest.mark.long  # ten full runs, 120 s of a worker: make test-long (make test's budget)
 def test_the_theory_holds_on_both_plant_engines_and_the_page_compares_them(tmp_path):
     """`--plant-engine pybullet,mujoco` (issue 26): every scenario's full run on each engine,
     judged by the same checks to the same tolerances (all agree), in OUT/<engine>/, and the
