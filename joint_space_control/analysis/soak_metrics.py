@@ -32,6 +32,23 @@ def parse_vmrss(status: str) -> int | None:
     return None
 
 
+#: The parts of VmRSS the kernel reports (``/proc/<pid>/status``): the process's own
+#: (anonymous: heap, stacks, the allocator's pools), file pages it maps (libraries), and
+#: shared memory it maps (the middleware's shared-memory transport segments, counted in
+#: every process that maps them).
+RSS_PARTS = ("RssAnon", "RssFile", "RssShmem")
+
+
+def parse_rss_parts(status: str) -> dict[str, int]:
+    """The :data:`RSS_PARTS` [bytes] found in the text of ``/proc/<pid>/status``."""
+    parts = {}
+    for line in status.splitlines():
+        key, _, rest = line.partition(":")
+        if key in RSS_PARTS:
+            parts[key] = int(rest.split()[0]) * 1024
+    return parts
+
+
 def slope_per_minute(times_s: Sequence[float], values: Sequence[float]) -> float:
     r"""Least-squares slope of ``values`` over ``times_s`` [s], per minute:
     b = Σ(tᵢ − t̄)(yᵢ − ȳ) / Σ(tᵢ − t̄)² · 60. NaN with fewer than two distinct times."""

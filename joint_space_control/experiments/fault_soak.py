@@ -59,7 +59,13 @@ from joint_space_control.analysis.fault_metrics import (
 from joint_space_control.analysis.fault_timeline import read_timeline
 from joint_space_control.analysis.loop_digest import format_loops, loop_windows
 from joint_space_control.analysis.node_logs import format_said, said_in, tracebacks
-from joint_space_control.analysis.soak_metrics import CommandAudit, Criterion, move_targets, passed
+from joint_space_control.analysis.soak_metrics import (
+    RSS_PARTS,
+    CommandAudit,
+    Criterion,
+    move_targets,
+    passed,
+)
 from joint_space_control.experiments.fault_schedule import KINDS, ScheduledFault, fault_schedule
 from joint_space_control.experiments.harness.domains import lease_domain
 from joint_space_control.experiments.harness.loop import wait_recorder_matched
@@ -71,7 +77,7 @@ from joint_space_control.experiments.soak import (
     MOVE_TIME,
     SETTLE,
     SoakObserver,
-    rss_of,
+    memory_of,
 )
 from joint_space_control.json_values import jsonable
 from joint_space_control.model.dynamics import RobotModel
@@ -189,6 +195,8 @@ class FaultSoak:
         self.bags: list[Path] = []
         self.runs: dict[str, int] = {}  # starts of each node so far
         self.memory: dict[str, tuple[list[float], list[int]]] = {}
+        # per sample, VmRSS's parts [bytes]: the process's own memory or mapped segments
+        self.memory_parts: dict[str, list[dict[str, int]]] = {}
         self.pids: dict[str, int] = {}
         self._unmatched = ""  # why the restarted recorder was last found not matched
         self.crash: str | None = None
@@ -269,10 +277,11 @@ class FaultSoak:
 
     def _sample(self, now: float) -> None:
         for key, pid in self.pids.items():
-            rss = rss_of(pid)
-            if rss is not None:
+            found = memory_of(pid)
+            if found is not None:
                 self.memory[key][0].append(now)
-                self.memory[key][1].append(rss)
+                self.memory[key][1].append(found[0])
+                self.memory_parts.setdefault(key, []).append(found[1])
 
     def wait_running(self, what: str) -> None:
         """Until the controller's commands flow again (:data:`RUNNING_COMMANDS` more)."""
@@ -705,7 +714,14 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
         "memory_over_run": over_run,
         # every sample, [s from the start, MB] per process incarnation: where it grew
         "memory_samples": {
-            key: {"t": t, "rss_mb": [r / 1e6 for r in rss]}
+            key: {
+                "t": t,
+                "rss_mb": [r / 1e6 for r in rss],
+                **{
+                    part: [p.get(part, 0) / 1e6 for p in soak.memory_parts.get(key, [])]
+                    for part in RSS_PARTS
+                },
+            }
             for key, (t, rss) in soak.memory.items()
         },
         "tracebacks": found,

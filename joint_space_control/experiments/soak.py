@@ -47,6 +47,7 @@ from joint_space_control.analysis.soak_metrics import (
     memory_summary,
     move_targets,
     numeric_values,
+    parse_rss_parts,
     parse_vmrss,
     passed,
     verdict,
@@ -113,11 +114,20 @@ class SoakOptions:
 
 def rss_of(pid: int) -> int | None:
     """VmRSS [bytes] of a process, None when it is gone."""
+    found = memory_of(pid)
+    return None if found is None else found[0]
+
+
+def memory_of(pid: int) -> tuple[int, dict[str, int]] | None:
+    """VmRSS [bytes] of a process and its parts (:data:`.soak_metrics.RSS_PARTS`), None
+    when it is gone."""
     try:
         with open(f"/proc/{pid}/status") as f:
-            return parse_vmrss(f.read())
+            status = f.read()
     except OSError:
         return None
+    rss = parse_vmrss(status)
+    return None if rss is None else (rss, parse_rss_parts(status))
 
 
 class SoakObserver(RosClient):

@@ -19,6 +19,7 @@ from joint_space_control.analysis.soak_metrics import (
     memory_summary,
     move_targets,
     numeric_values,
+    parse_rss_parts,
     parse_vmrss,
     passed,
     plateaus,
@@ -32,12 +33,21 @@ VmPeak:\t  400000 kB
 VmHWM:\t  180000 kB
 VmRSS:\t  171712 kB
 RssAnon:\t   90000 kB
+RssFile:\t   80000 kB
+RssShmem:\t    1712 kB
 """
 
 
 def test_vmrss_in_bytes():
     assert parse_vmrss(STATUS) == 171712 * 1024
     assert parse_vmrss("Name:\tzombie\nState:\tZ (zombie)\n") is None
+
+
+def test_the_parts_of_the_resident_memory_in_bytes():
+    parts = parse_rss_parts(STATUS)
+    assert parts == {"RssAnon": 90000 * 1024, "RssFile": 80000 * 1024, "RssShmem": 1712 * 1024}
+    assert sum(parts.values()) == parse_vmrss(STATUS)
+    assert parse_rss_parts("Name:\tzombie\n") == {}
 
 
 def test_slope_of_a_line_is_exact_per_minute():
