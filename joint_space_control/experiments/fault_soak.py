@@ -200,6 +200,9 @@ class FaultSoak:
         self.pids: dict[str, int] = {}
         self._unmatched = ""  # why the restarted recorder was last found not matched
         self.crash: str | None = None
+        # a fault whose process or loop did not come back (BACK_TIMEOUT): the run ends
+        # there and is judged on what it recorded
+        self.stuck: str | None = None
         self._moves = 0
         self._next_move = self._next_sample = 0.0
         self._moved_at = -math.inf
@@ -311,6 +314,10 @@ class FaultSoak:
         )
         try:
             getattr(self, f"_{fault.kind}")(record)
+        except TimeoutError as err:  # not back: the fault is kept, the run ends (run())
+            record.ok, record.detail = False, f"not back: {err}"
+            self.injected.append(record)
+            raise
         finally:
             record.end = time.time()
             if self._holding:
@@ -539,6 +546,9 @@ class FaultSoak:
                 except RuntimeError as err:  # a node exited without being killed
                     self.crash = " ".join(str(err).split())[:2000]
                     self.log(f"  CRASH: {self.crash[:300]}")
+                except TimeoutError as err:  # not back: judged, not thrown away
+                    self.stuck = " ".join(str(err).split())[:2000]
+                    self.log(f"  NOT BACK: {self.stuck[:300]}; the run ends here")
                 self.ended = time.time()
                 if self.crash is None:
                     self.observer.trigger("/sim_bridge/pause", group.check_alive)
@@ -644,6 +654,13 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
             soak.crash or "none",
         )
     )
+    criteria.append(
+        Criterion(
+            f"every fault's process and loop back within {BACK_TIMEOUT:g} s",
+            soak.stuck is None,
+            soak.stuck or "yes",
+        )
+    )
     refused = [f for f in soak.injected if not f.ok]
     criteria.append(
         Criterion(
@@ -695,6 +712,7 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
         "ended": soak.ended,
         "duration_s": soak.ended - soak.started,
         "crash": soak.crash,
+        "stuck": soak.stuck,
         "faults": [f.__dict__ for f in soak.injected],
         "outcomes": [asdict(o) for o in assessment.outcomes],
         "by_kind": [asdict(k) for k in summaries],
