@@ -395,6 +395,7 @@ def test_the_same_sweep_is_bit_identical_on_threads_and_on_a_local_cluster(
     assert marked(marker) == [], "a worker or node outlived the sweep"
 
 
+@pytest.mark.long  # a whole sweep on a cluster with a worker killed, ~55 s: make test-long
 @pytest.mark.timeout(600)
 def test_a_worker_killed_mid_sweep_is_retried_and_leaves_no_node(tmp_path, marker):
     """Four runs, two of them identical, on two workers; the worker of a running run is

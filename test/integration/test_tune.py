@@ -95,6 +95,7 @@ def test_tune_meets_the_spec_and_a_fresh_experiment_confirms_the_gains(tmp_path)
     print(f"tune: {tuned:.0f} s for {TRIALS} trials, {best}; confirmed {check['text']}")
 
 
+@pytest.mark.long  # a tune interrupted and resumed, ~50 s: make test-long
 def test_ctrl_c_fails_the_trials_in_flight_and_the_same_command_resumes(tmp_path):
     out = tmp_path / "tune"
     proc, output, leftovers = interrupt_once_running(
