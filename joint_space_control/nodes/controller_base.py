@@ -418,21 +418,26 @@ class JointController(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_reference(self, raw: bytes, info: Any = None) -> None:
-        """A reference's bytes (control path). With ``trigger: state`` (lockstep: time waits
-        for the answer) it is validated and splined before the next state is answered (a
-        large one in the builder's process, waited for), so a run does not depend on
-        timing; otherwise the reference thread has it
-        built (:class:`~joint_space_control.ros.reference_worker.ReferenceBuilder`: a large
-        one in a process of its own, so the loop never shares the interpreter with it) and
-        the trajectory is swapped in between two ticks once ready: the tick never waits."""
+        """A reference's bytes (control path). With ``trigger: state`` it is validated and
+        splined before the next state is answered (a large one in the builder's process,
+        waited for), so that a lockstep run, whose time waits for the answer, does not
+        depend on timing. Otherwise, and for a large one behind a plant known to run in
+        realtime, which does not wait (waiting there stalled the loop for 35-40 s on a
+        loaded machine while the builder, at nice 19, read a 100,000-point reference: the
+        plant braked, then the arm was pulled after the reference at the effort limits),
+        the reference thread has it built
+        (:class:`~joint_space_control.ros.reference_worker.ReferenceBuilder`: a large one in
+        a process of its own, so the loop never shares the interpreter with it) and the
+        trajectory is swapped in between two ticks once ready: the tick never waits."""
         if self.trigger == "pending":  # its time base (state stamps or clock) is not known
             self._deferred.append(raw)
             return
         now = self._now()
-        if self.trigger == "state":
-            if len(raw) <= IN_THREAD_BYTES:
-                self._take_reference(self._build_reference(raw, now), self._generation)
-                return
+        large = len(raw) > IN_THREAD_BYTES
+        if self.trigger == "state" and not large:
+            self._take_reference(self._build_reference(raw, now), self._generation)
+            return
+        if self.trigger == "state" and not self._realtime_plant:
             # a large one in the builder's process, waited for: its hundreds of thousands
             # of objects are read there, not spread over this process's memory for good
             # (a controller stepped up 180 MB over six 100,000-point references; flat now)
