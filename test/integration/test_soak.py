@@ -84,6 +84,8 @@ def test_short_fault_soak_survives_every_fault_kind_once(tmp_path):
         "--minutes", "3", "--period", "15", "--seed", "0", "--out", str(out),
     ]  # fmt: skip
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=540)
+    if proc.returncode != 0:
+        _xfail_if_only_an_unfed_restart(out)
     assert proc.returncode == 0, proc.stdout[-8000:] + proc.stderr[-3000:]
     assert "verdict: PASS" in proc.stdout
     report = json.loads((out / "soak.json").read_text())
@@ -104,3 +106,33 @@ def test_short_fault_soak_survives_every_fault_kind_once(tmp_path):
     assert (out / "soak.png").stat().st_size > 10_000
     ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert str(out) not in ps  # every node process is gone
+
+
+#: A restarted observer that the middleware matched but never fed (docs/safety.md, "What the
+#: package cannot survive": Fast DDS's shared-memory transport after a SIGKILL; 2 of 7 short
+#: forms on 2026-12-03): what the soak then says, and the criteria that fail with it alone
+#: (the run ends at that fault).
+UNFED_RESTARTS = ("the restarted recorder's subscriptions", "the restarted dashboard")
+FAIL_WITH_IT = (
+    "tracking back after kill_recorder",
+    "tracking back after kill_dashboard",
+    "every fault's process and loop back within",
+    "every injection did what it must",
+)
+
+
+def _xfail_if_only_an_unfed_restart(out) -> None:
+    """An expected failure when the soak failed on that middleware problem and on nothing
+    else (every other failed criterion still fails the test), once every node is gone."""
+    path = out / "soak.json"
+    if not path.is_file():
+        return
+    report = json.loads(path.read_text())
+    stuck = report.get("stuck") or ""
+    failed = [c["name"] for c in report["criteria"] if c["met"] is False]
+    ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
+    assert str(out) not in ps  # every node process is gone, whatever the verdict
+    if any(what in stuck for what in UNFED_RESTARTS) and all(
+        name.startswith(FAIL_WITH_IT) for name in failed
+    ):
+        pytest.xfail(f"a restarted observer matched but never fed by the middleware: {stuck}")
