@@ -80,7 +80,7 @@ class Harness:
     def publish(self) -> tuple[Any, JointTrajectory | None]:
         """Call ``~/publish``: its answer, and the reference it published (if it did)."""
         count = len(self.references)
-        answer = self.probe.call_trigger(f"/{NODE}/publish", timeout=10.0)
+        answer = self.probe.call_trigger(f"/{NODE}/publish", timeout=10.0, resend=False)
         return answer, self.next_reference(since=count) if answer.success else None
 
     def set_atomically(self, values: dict[str, Any]) -> Any:
@@ -297,7 +297,7 @@ def test_controller_samples_the_generated_sinusoid_exactly(make_loop, monkeypatc
     # The simulator is paused at t = 0, so the generator's (simulation) time is 0 as well.
     # Volatile reference: publish until the controller is matched (repeats are identical).
     for _ in range(100):
-        answer = probe.call_trigger(f"/{NODE}/publish", timeout=20.0)
+        answer = probe.call_trigger(f"/{NODE}/publish", timeout=20.0, resend=False)
         assert answer.success, answer.message
         if "to 1 subscriber(s)" in answer.message:  # the controller
             break

@@ -21,6 +21,7 @@ from rclpy.executors import ShutdownException, SingleThreadedExecutor, TimeoutEx
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 #: Longest wait [s] of one turn of the default :meth:`RosClient.spin_once`.
@@ -33,6 +34,14 @@ PROFILES_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 #: The client participant's Fast DDS profiles: quicker discovery announcements and
 #: heartbeats (the file says why and what they save).
 CLIENT_PROFILES = Path(__file__).with_name("fastdds_client.xml")
+#: How long [s] a request waits for its answer before it is sent again (up to the call's
+#: timeout). A service answers a client only once it has matched the client's reply reader:
+#: rmw_fastrtps waits 100 ms for that, then drops the answer and logs "failed to send
+#: response (timeout)". On two loaded cores a new client's reader was sometimes not matched
+#: in time, and its call waited out its 10 s (make test: a set_parameters, a ``~/pause``).
+#: Sent again, the request finds the reader matched. Only for services whose second call
+#: does what the first did (parameters, the plant's pause, resume, reset and release).
+RESEND_AFTER = 2.0
 
 
 _profiles_lock = threading.Lock()
@@ -162,15 +171,51 @@ class RosClient:
             node.destroy_node()
 
     # -- services and parameters ---------------------------------------------------------
+    def answer(
+        self,
+        send: Callable[[], Future],
+        timeout: float,
+        what: str,
+        check: Callable[[], None] | None = None,
+        resend: bool = True,
+    ) -> Any:
+        """The result of the request ``send()`` makes, sent again each :data:`RESEND_AFTER`
+        seconds without an answer when ``resend`` (the first answer wins); TimeoutError
+        naming ``what`` after ``timeout`` seconds."""
+        end = time.monotonic() + timeout
+        while True:
+            future = send()
+            left = end - time.monotonic()
+            try:
+                self.spin_until(
+                    future.done, min(left, RESEND_AFTER) if resend else left, what, check
+                )
+                return future.result()
+            except TimeoutError:
+                if not resend or time.monotonic() >= end:
+                    raise TimeoutError(
+                        f"timed out after {timeout:g} s waiting for {what}"
+                    ) from None
+
     def call_trigger(
-        self, service: str, timeout: float = 10.0, check: Callable[[], None] | None = None
+        self,
+        service: str,
+        timeout: float = 10.0,
+        check: Callable[[], None] | None = None,
+        resend: bool = True,
     ) -> Trigger.Response:
+        """Call a std_srvs/Trigger service; ``resend``: see :meth:`answer` (False for a
+        service whose second call is not its first, the generator's ``~/publish``)."""
         client = self.node.create_client(Trigger, service)
         try:
             self.spin_until(client.service_is_ready, timeout, f"service {service}", check)
-            future = client.call_async(Trigger.Request())
-            self.spin_until(future.done, timeout, f"answer of {service}", check)
-            return future.result()
+            return self.answer(
+                lambda: client.call_async(Trigger.Request()),
+                timeout,
+                f"answer of {service}",
+                check,
+                resend,
+            )
         finally:
             self.node.destroy_client(client)
 
@@ -204,9 +249,14 @@ class RosClient:
     ) -> list[Any]:
         """Set parameters of a remote node; returns the SetParametersResult of each."""
         client = self.parameter_client(node_name, timeout, check)
-        future = client.set_parameters([Parameter(k, value=v) for k, v in values.items()])
-        self.spin_until(future.done, timeout, f"set_parameters on {node_name}", check)
-        return list(future.result().results)
+        parameters = [Parameter(k, value=v) for k, v in values.items()]
+        result = self.answer(
+            lambda: client.set_parameters(parameters),
+            timeout,
+            f"set_parameters on {node_name}",
+            check,
+        )
+        return list(result.results)
 
     def get_parameters(
         self,
@@ -216,9 +266,10 @@ class RosClient:
         check: Callable[[], None] | None = None,
     ) -> list[Any]:
         client = self.parameter_client(node_name, timeout, check)
-        future = client.get_parameters(names)
-        self.spin_until(future.done, timeout, f"get_parameters on {node_name}", check)
-        return [parameter_value_to_python(v) for v in future.result().values]
+        result = self.answer(
+            lambda: client.get_parameters(names), timeout, f"get_parameters on {node_name}", check
+        )
+        return [parameter_value_to_python(v) for v in result.values]
 
     def close(self) -> None:
         self.executor.shutdown()
