@@ -31,6 +31,7 @@ except BaseException:
 ROUNDS = 3  # per signal
 
 
+@pytest.mark.long  # make test-long (docs/testing.md: make test's budget)
 def test_realtime_sim_bridge_stops_without_traceback_with_a_clock_subscriber(tmp_path):
     domain = next_domain_id()
     listener = subprocess.Popen(

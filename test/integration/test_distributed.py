@@ -293,6 +293,7 @@ def test_local_cluster_cancel_stops_running_tasks_on_the_workers(tmp_path, marke
     assert marked(marker) == []
 
 
+@pytest.mark.long  # make test-long (docs/testing.md: make test's budget)
 def test_an_unreachable_scheduler_is_a_one_line_error(tmp_path):
     with pytest.raises(ValueError, match="cannot connect to the Dask scheduler 'nonsense:x'"):
         RunPool(2, "nonsense:x")
@@ -361,7 +362,8 @@ def same(a: Any, b: Any) -> bool:
 @pytest.mark.parametrize(
     "engine",
     [
-        "inprocess",
+        # two LocalClusters started: about a minute of a worker, in make test-long too
+        pytest.param("inprocess", marks=pytest.mark.long),
         # 18 runs of three nodes each: two minutes, so in make test-long (see docs/testing.md)
         pytest.param("ros", marks=pytest.mark.long),
     ],
@@ -460,6 +462,7 @@ def test_a_worker_killed_mid_sweep_is_retried_and_leaves_no_node(tmp_path, marke
 
 
 @pytest.mark.timeout(300)
+@pytest.mark.long  # make test-long (docs/testing.md: make test's budget)
 def test_ctrl_c_of_jsc_experiment_on_a_local_cluster_leaves_nothing(tmp_path, marker):
     """Ctrl-C as a terminal sends it: SIGINT to the whole process group (jsc, the Dask
     workers it spawned); exit 130, no node and no worker process left."""

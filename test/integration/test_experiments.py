@@ -56,6 +56,7 @@ def test_inverse_dynamics_scenario_end_to_end_agrees_with_the_theory(tmp_path):
     assert (out / "bag" / "metadata.yaml").is_file()
 
 
+@pytest.mark.long  # make test-long (docs/testing.md: make test's budget)
 def test_two_robots_in_one_world_are_each_analysed_and_checked(tmp_path):
     """One world, one bag, one report: each robot's controller analysed as a run of its own,
     the checks per robot (the iiwa's PD + g at its set-point, the arm's inverse dynamics the
@@ -222,6 +223,7 @@ def test_every_scenario_runs_on_mujoco_as_on_pybullet(tmp_path):
         assert checks["mujoco"] == checks["pybullet"], name
 
 
+@pytest.mark.long  # make test-long (docs/testing.md: make test's budget)
 def test_ctrl_c_stops_every_node_of_a_running_experiment(tmp_path):
     proc, output, leftovers = interrupt_once_running(
         ["experiment", "q4_sinusoid_tracking", "--out", str(tmp_path)],

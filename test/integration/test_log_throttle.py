@@ -99,6 +99,7 @@ def test_each_recurring_fault_of_a_controller_logs_one_line_a_second(rig):  # no
         assert any(m is not None and int(m.group(1)) > 0 for m in held), (text, lines)
 
 
+@pytest.mark.long  # make test-long (docs/testing.md: make test's budget)
 def test_each_recurring_fault_of_the_plant_logs_one_line_a_second(rig):  # noqa: F811
     """sim_bridge (realtime, so that it takes every message without a controller): bad,
     absurd and foreign effort commands, bad arrays and bad wrenches at ~500 Hz for seconds

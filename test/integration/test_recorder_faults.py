@@ -90,7 +90,11 @@ def wait_until_on_disk(bag: Path, t: float, out: Path, timeout: float = 60.0) ->
     raise TimeoutError(f"the recorder did not flush t={t} s within {timeout} s")
 
 
-@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+@pytest.mark.parametrize(
+    # sqlite3 in make test-long (make test's budget): the same path, the other storage
+    "storage",
+    ["mcap", pytest.param("sqlite3", marks=pytest.mark.long)],
+)
 def test_sigkill_mid_run_loses_at_most_a_flush_period_and_recovers(tmp_path, storage):
     bag = tmp_path / "bag"
     with loop(tmp_path, None, sim_params={"pause_at": 1.0}) as run:
