@@ -15,6 +15,9 @@ import pytest
 pytestmark = pytest.mark.integration
 
 
+# realtime: its loop's every tick is judged; beside another test's realtime plant at FIFO
+# priority, it lost a tenth of its commands and stalled for 1 s (make test, 2026-12-03)
+@pytest.mark.realtime
 def test_short_soak_reports_every_figure(tmp_path):
     out = tmp_path / "soak"
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}

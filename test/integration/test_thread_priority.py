@@ -20,7 +20,9 @@ from joint_space_control.scheduling import fifo_permitted
 from .conftest import GAINS
 from .test_faults import ROBOT, Rig, rig  # noqa: F401  (the fixture)
 
-pytestmark = pytest.mark.integration
+# realtime (one at a time): two FIFO loops of its own beside another test's left the probe,
+# at normal priority, without the plant's /diagnostics for 20 s (make test, 2026-12-03)
+pytestmark = [pytest.mark.integration, pytest.mark.realtime]
 
 SIM, CONTROLLER = "sim_bridge", "pd_gravity_controller"
 
