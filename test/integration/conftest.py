@@ -26,6 +26,23 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 _leases: list[DomainLease] = []
 
+#: A failed test's report ends with the last lines of each node's log under its tmp_path
+#: (a failure in CI is read from its output alone: which node said what, and when).
+NODE_LOG_LINES = 25
+NODE_LOGS = 12  # at most this many logs
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Iterator[None]:
+    outcome = yield
+    report = outcome.get_result()
+    tmp = getattr(item, "funcargs", {}).get("tmp_path")
+    if report.when != "call" or not report.failed or tmp is None:
+        return
+    for log in sorted(Path(tmp).rglob("*.log"))[:NODE_LOGS]:
+        tail = log.read_text(errors="replace").splitlines()[-NODE_LOG_LINES:]
+        report.sections.append((f"node log {log.relative_to(tmp)}", "\n".join(tail)))
+
 
 def next_domain_id() -> int:
     """A ROS domain no other test (worker or concurrent run) on this machine uses; held
