@@ -5,7 +5,8 @@ its usual timing, and the plant's brakes never engage.
 
 Judged on the controller's /diagnostics windows (1 s each): the loop's period p99 over the
 windows while the reference is received, built and started stays that of the six windows
-before (median of the window p99s within 2×), and no period reaches 50 ms. Measured on this
+before (median of the window p99s within 2×), and no period reaches 50 ms (or twice the
+worst of those six windows, on a machine that stalls the loop by itself). Measured on this
 2-core machine with plant, controller and probe running: p99 1.7–2.5 ms before, 1.9–2.9 ms
 during (one window 5.8 ms in one of four runs); the worst period during, 9–17 ms, is rclpy
 copying
@@ -41,6 +42,10 @@ PLANT = "sim_bridge: control loop"
 #: shared 2-core machine's own variation stays inside, a build on the loop's interpreter
 #: (about 5×) does not.
 USUAL_RATIO = 2.0
+#: No period during the build this long [µs], unless the loop had one half as long before it
+#: (a loaded machine's own stall: 124 ms once in make test, 2026-12-03, where a build on the
+#: control path stalled 1.3 s and a waited-for build 3.5 s).
+STALL_US = 50_000.0
 
 
 def sine_reference(points: int, period: float = 1e-3) -> JointTrajectory:
@@ -107,9 +112,14 @@ def test_a_100000_point_reference_does_not_stall_the_realtime_loop(rig: Rig, tri
     usual = [w["period.p99_us"] for w in before]
     now = [w["period.p99_us"] for w in during]
     worst = max(w["period.max_us"] for w in during)
-    print(f"period p99 before {usual} us, during {now}; worst period during {worst} us")
+    worst_before = max(w["period.max_us"] for w in before)
+    print(
+        f"period p99 before {usual} us, during {now}; worst period before {worst_before} us,"
+        f" during {worst} us"
+    )
     assert plant[-1]["brake.engaged"] == brakes  # no brake while the reference was built
     assert np.median(now) <= USUAL_RATIO * np.median(usual)  # the loop's usual timing
-    assert worst < 50_000.0  # [µs]
+    # no stall: within 50 ms, or within twice the machine's own worst before the build
+    assert worst < max(STALL_US, USUAL_RATIO * worst_before), (worst, worst_before)
     log = controller.log()
     assert "rejected" not in log and "Traceback" not in log
