@@ -180,17 +180,21 @@ class RosClient:
         resend: bool = True,
     ) -> Any:
         """The result of the request ``send()`` makes, sent again each :data:`RESEND_AFTER`
-        seconds without an answer when ``resend`` (the first answer wins); TimeoutError
-        naming ``what`` after ``timeout`` seconds."""
+        seconds without an answer when ``resend``; the first answer to any of the requests
+        wins (one answered late is as good); TimeoutError naming ``what`` after ``timeout``
+        seconds."""
         end = time.monotonic() + timeout
+        sent: list[Future] = []
+
+        def answered() -> bool:
+            return any(future.done() for future in sent)
+
         while True:
-            future = send()
+            sent.append(send())
             left = end - time.monotonic()
             try:
-                self.spin_until(
-                    future.done, min(left, RESEND_AFTER) if resend else left, what, check
-                )
-                return future.result()
+                self.spin_until(answered, min(left, RESEND_AFTER) if resend else left, what, check)
+                return next(future for future in sent if future.done()).result()
             except TimeoutError:
                 if not resend or time.monotonic() >= end:
                     raise TimeoutError(
