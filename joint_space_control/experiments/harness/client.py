@@ -42,6 +42,13 @@ CLIENT_PROFILES = Path(__file__).with_name("fastdds_client.xml")
 #: Sent again, the request finds the reader matched. Only for services whose second call
 #: does what the first did (parameters, the plant's pause, resume, reset and release).
 RESEND_AFTER = 2.0
+#: Longest wait [s] for nodes just started to appear in the graph and connect (a probe's
+#: ``wait_for_graph`` and ``wait_for_subscriber``, a recorder's matches, a latched config).
+#: A lockstep run's three nodes (iiwa, inverse dynamics, recorder) connect 3 s after they
+#: are started on an idle machine here; in CI's make test-long, four runs starting at once
+#: beside another test on two cores, a controller was not subscribed after 20 s. The wait
+#: ends as soon as they are connected, and at once if one of them exits (``check``).
+STARTUP_TIMEOUT = 60.0
 
 
 _profiles_lock = threading.Lock()

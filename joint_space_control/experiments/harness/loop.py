@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from std_msgs.msg import Float64MultiArray
 
-from joint_space_control.experiments.harness.client import RosClient
+from joint_space_control.experiments.harness.client import STARTUP_TIMEOUT, RosClient
 from joint_space_control.experiments.harness.domains import lease_domain
 from joint_space_control.experiments.harness.probe import LoopProbe, in_namespace
 from joint_space_control.experiments.harness.processes import ProcessGroup
@@ -143,7 +143,9 @@ class ClosedLoop:
             self.close()
             raise
 
-    def wait_recorder_matched(self, topics: Sequence[str], timeout: float = 20.0) -> None:
+    def wait_recorder_matched(
+        self, topics: Sequence[str], timeout: float = STARTUP_TIMEOUT
+    ) -> None:
         """:func:`wait_recorder_matched` with the run's probe."""
         wait_recorder_matched(self.probe, topics, self.group.check_alive, timeout)
 
@@ -288,7 +290,7 @@ def wait_recorder_matched(
     client: RosClient,
     topics: Sequence[str],
     check: Callable[[], None],
-    timeout: float = 20.0,
+    timeout: float = STARTUP_TIMEOUT,
 ) -> None:
     """Wait until the recorder's subscription to each of ``topics`` is matched with a
     publisher (its ``~/matched``, asked through ``client``), then :data:`MATCH_MARGIN`. A

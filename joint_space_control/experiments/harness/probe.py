@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
-from joint_space_control.experiments.harness.client import RosClient
+from joint_space_control.experiments.harness.client import STARTUP_TIMEOUT, RosClient
 from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import DIAGNOSTICS_QOS, statuses
 from joint_space_control.ros.messages import (
@@ -225,13 +225,13 @@ class LoopProbe(RosClient):
                 CONFIG_QOS,
             )
             self._configs[topic] = {}
-        self.spin_until(lambda: bool(self._configs[topic]), 20.0, f"{topic}", check)
+        self.spin_until(lambda: bool(self._configs[topic]), STARTUP_TIMEOUT, f"{topic}", check)
         self.serve_ready()  # a newer one, if it is waiting
         return self._configs[topic]
 
     def wait_for_graph(
         self,
-        timeout: float = 20.0,
+        timeout: float = STARTUP_TIMEOUT,
         check: Callable[[], None] | None = None,
         reference_subscribers: int = 1,
     ) -> None:
@@ -262,7 +262,7 @@ class LoopProbe(RosClient):
         self,
         node_name: str,
         topics: Sequence[str],
-        timeout: float = 20.0,
+        timeout: float = STARTUP_TIMEOUT,
         check: Callable[[], None] | None = None,
     ) -> None:
         """Wait until the node ``node_name`` subscribes to every topic in ``topics``."""
