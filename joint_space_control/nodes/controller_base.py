@@ -205,6 +205,7 @@ class JointController(Node):
         self._state_jumps = BackwardJumps()
         self._lag = Lag()  # how far behind the plant the joint states are taken
         self._realtime_plant = False  # known to be realtime (plant_mode): Lag judged
+        self._declared_realtime = False  # every joint_states publisher says mode: realtime
         self._jumps_said: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -610,18 +611,24 @@ class JointController(Node):
         """The plant mode watcher decided (executor thread): hand over to the control path.
         ``trigger`` is "state" behind a lockstep plant, "timer" behind any other."""
         self._realtime_plant = trigger == "timer"
+        self._declared_realtime = self._watcher.realtime
         self.control_path.post(self._follow_plant)
         if self.trigger_parameter == "auto":
             self.control_path.post(lambda: self._set_trigger(trigger, reason))
 
     def _follow_plant(self) -> None:
         """The joint states' QoS for the plant's mode (control path): reliable behind a
-        lockstep plant, which waits for the answer to each state, and whenever the trigger
-        is set to ``state`` (each state is answered: none may be lost, and subscribing again
-        would lose those sent while the new reader is matched); best effort behind a
-        realtime plant otherwise, so that a controller that stalled takes the newest state,
-        not the writer's backlog (REALTIME_STATE_QOS)."""
-        newest_only = self._realtime_plant and self.trigger_parameter != "state"
+        lockstep plant, which waits for the answer to each state; best effort behind a plant
+        that declares ``mode: realtime``, so that a controller that stalled or started late
+        takes the newest state, not the writer's backlog (REALTIME_STATE_QOS): with
+        ``trigger: state`` kept reliable there, the fault soak's restarted controller was
+        handed states over 100 ms old for a minute and never commanded again. Behind any
+        other publisher, best effort on the timer and reliable with ``trigger: state`` (each
+        state answered: subscribing again would lose the states sent while the new reader
+        is matched; CI lost one so, in tests that publish states themselves)."""
+        newest_only = self._realtime_plant and (
+            self.trigger_parameter != "state" or self._declared_realtime
+        )
         qos = REALTIME_STATE_QOS if newest_only else CONTROL_QOS
         if self._state_sub.qos_profile != qos:
             self._state_sub = self.control_path.resubscribe(self._state_sub, qos)

@@ -11,6 +11,11 @@ does. ``sim_bridge`` declares ``mode`` (``realtime`` | ``lockstep``).
   ``mode``, or no answer came within ANSWER_TIMEOUT     → ``timer``
 - no publisher seen yet, or answers outstanding         → no decision yet
 
+Besides the trigger, the watcher says whether every publisher declared itself ``realtime``
+(:attr:`PlantModeWatcher.realtime`): a controller that answers each state keeps a reliable
+reader behind a publisher that is not a plant (a test's own states), and takes the newest
+state only behind a plant that says it runs in realtime.
+
 Everything here runs in the node's executor thread (a steady-clock timer, so it also runs
 with ``use_sim_time`` before any /clock; asynchronous service calls and their
 done-callbacks): the control path is never blocked. The publishers are looked at again
@@ -62,9 +67,14 @@ def trigger_for(answers: dict[Key, str], publishers: frozenset[Key]) -> str | No
     return None
 
 
+def declared_realtime(answers: dict[Key, str], publishers: frozenset[Key]) -> bool:
+    """True when there are publishers and every one answered ``mode`` = ``realtime``."""
+    return bool(publishers) and all(answers.get(k) == "realtime" for k in publishers)
+
+
 class PlantModeWatcher:
     """Calls ``on_decision(trigger, reason)`` (in the executor thread) whenever the trigger
-    the publishers of ``topic`` ask for is decided or changes."""
+    the publishers of ``topic`` ask for is decided or changes, or :attr:`realtime` does."""
 
     def __init__(self, node: Node, topic: str, on_decision: Callable[[str, str], None]) -> None:
         self._node = node
@@ -75,6 +85,7 @@ class PlantModeWatcher:
         # outstanding questions: key -> (client, future or None before the call, since)
         self._asked: dict[Key, tuple[Any, Any, float]] = {}
         self._decision: str | None = None
+        self._realtime = False
         self._next_look = 0.0
         self._timer = node.create_timer(
             POLL_PERIOD, self._poll, clock=Clock(clock_type=ClockType.STEADY_TIME)
@@ -83,6 +94,11 @@ class PlantModeWatcher:
     @property
     def decision(self) -> str | None:
         return self._decision
+
+    @property
+    def realtime(self) -> bool:
+        """Every publisher of the topic declared ``mode: realtime`` (as of the decision)."""
+        return self._realtime
 
     def _poll(self) -> None:
         now = time.monotonic()
@@ -134,9 +150,10 @@ class PlantModeWatcher:
 
     def _decide(self) -> None:
         trigger = trigger_for(self._answers, self._publishers)
-        if trigger is None or trigger == self._decision:
+        realtime = declared_realtime(self._answers, self._publishers)
+        if trigger is None or (trigger, realtime) == (self._decision, self._realtime):
             return
-        self._decision = trigger
+        self._decision, self._realtime = trigger, realtime
         modes = ", ".join(
             f"{_label(k)} mode={self._answers[k] or '(none)'}"
             for k in sorted(self._publishers)

@@ -7,6 +7,7 @@ stops every process it starts."""
 from __future__ import annotations
 
 import json
+import signal
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -164,6 +165,33 @@ def test_a_controller_answering_each_state_keeps_its_reader_reliable(nodes):
     status = nodes.status(name, lambda s: True)
     assert status["joint_states_reliability"] == "reliable"
     nodes.state_reliability(controller, ReliabilityPolicy.RELIABLE)
+
+
+@pytest.mark.realtime
+def test_a_controller_answering_each_state_takes_the_newest_behind_a_realtime_plant(nodes):
+    """trigger: state behind sim_bridge in realtime: the reader turns best effort, so a
+    controller that stalled (SIGSTOP, 8 s: as one restarted on a loaded machine) answers the
+    newest state when it runs again and the plant's brakes come off within seconds. Kept
+    reliable, the fault soak's restarted controller was handed states over 100 ms old for a
+    minute, dropped them all and never commanded again."""
+    controller = "pd_gravity_controller"
+    nodes.start("sim_bridge", {"command_timeout": 0.1})
+    nodes.start(controller, {"trigger": "state"})
+    name = f"{controller}: control loop"
+    nodes.status(name, lambda s: s["plant"] == "not_lockstep" and s["commanding"] == 1, 30.0)
+    nodes.state_reliability(controller, ReliabilityPolicy.BEST_EFFORT)
+    nodes.status(SIM, lambda s: s["braking"] == 0, 30.0)
+    process = nodes.group.nodes[controller]
+    process.signal(signal.SIGSTOP)
+    try:
+        nodes.status(SIM, lambda s: s["braking"] == 1, 10.0)  # no command: braked
+        nodes.probe.spin_for(8.0)
+    finally:
+        process.signal(signal.SIGCONT)
+    sim = nodes.status(SIM, lambda s: s["braking"] == 0, 10.0)  # commanded again
+    assert sim["owner"] == f"/{controller}", sim
+    status = nodes.status(name, lambda s: s["trigger"] == "state")
+    assert status["joint_states_reliability"] == "best_effort"
 
 
 def test_lockstep_plant_warns_about_a_timer_controller_on_sim_time(nodes):

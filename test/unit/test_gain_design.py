@@ -21,7 +21,7 @@ from joint_space_control.laws.gains import (
 from joint_space_control.laws.second_order import gains_to_second_order
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.ros.plant_mode import trigger_for
+from joint_space_control.ros.plant_mode import declared_realtime, trigger_for
 
 
 def closed_loop_second_order(b: float, kp: float, kd: float) -> tuple[float, float]:
@@ -137,3 +137,13 @@ def test_trigger_follows_the_mode_of_the_joint_state_publishers():
     assert trigger_for({sim: "realtime"}, frozenset({sim, other})) is None
     assert trigger_for({sim: "realtime", other: ""}, frozenset({sim, other})) == "timer"
     assert trigger_for({other: ""}, frozenset({other})) == "timer"  # no mode: not lockstep
+
+
+def test_a_plant_is_realtime_only_when_every_publisher_says_so():
+    sim, other = ("/", "sim_bridge", b"1"), ("/", "probe", b"2")
+    assert not declared_realtime({}, frozenset())  # nobody publishes
+    assert not declared_realtime({}, frozenset({sim}))  # no answer yet
+    assert declared_realtime({sim: "realtime"}, frozenset({sim}))
+    assert not declared_realtime({sim: "lockstep"}, frozenset({sim}))
+    assert not declared_realtime({other: ""}, frozenset({other}))  # no mode: a test's states
+    assert not declared_realtime({sim: "realtime", other: ""}, frozenset({sim, other}))
