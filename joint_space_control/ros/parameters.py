@@ -13,6 +13,7 @@ from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from joint_space_control.control import parameters as pure
 from joint_space_control.control.parameters import (  # noqa: F401  (re-exported)
@@ -56,10 +57,38 @@ def descriptor_range(spec: ParamSpec) -> dict[str, list[Any]]:
 _ROS_PARAMETERS = ("use_sim_time", "start_type_description_service")
 
 
+def doubles(specs: Iterable[ParamSpec]) -> frozenset[str]:
+    """The names of the parameters typed DOUBLE (one number with a float default)."""
+    return frozenset(
+        spec.name
+        for spec in specs
+        if spec.type == "number" and isinstance(spec.default, float) and not spec.dynamic
+    )
+
+
+def as_declared(parameter: Parameter, double_names: frozenset[str]) -> Parameter:
+    """``parameter`` with an integer value as the double a DOUBLE parameter holds: a params
+    file's ``publish_rate: 250`` and ``ros2 param set ... publish_rate 250`` are typed
+    INTEGER, which rclpy refuses for a DOUBLE parameter (a user writes 250, not 250.0)."""
+    if parameter.name in double_names and parameter.type_ == Parameter.Type.INTEGER:
+        return Parameter(parameter.name, Parameter.Type.DOUBLE, float(parameter.value))
+    return parameter
+
+
 def declare(node: Node, specs: Iterable[ParamSpec]) -> None:
     """Declare the node's parameters; a value given for a parameter the node does not have
-    (a typo in a params file or a ``-p``: ROS ignores it silently) gets one WARN line."""
+    (a typo in a params file or a ``-p``: ROS ignores it silently) gets one WARN line. An
+    integer given for a DOUBLE parameter, at start or at runtime, is taken as its double
+    (:func:`as_declared`)."""
     specs = tuple(specs)
+    double_names = doubles(specs)
+    overrides = getattr(node, "_parameter_overrides", None)
+    if overrides is not None:
+        for name in double_names & set(overrides):
+            overrides[name] = as_declared(overrides[name], double_names)
+    node.add_pre_set_parameters_callback(
+        lambda changes: [as_declared(p, double_names) for p in changes]
+    )
     for spec in specs:
         node.declare_parameter(
             spec.name,
