@@ -526,7 +526,7 @@ class FaultSoak:
             self.observer = FaultObserver(lease.domain_id, self.audit, self.controller)
             try:
                 self.observer.wait_for_loop(self.controller, group.check_alive)
-                wait_recorder_matched(self.observer, self.topics, group.check_alive, 60.0)
+                wait_recorder_matched(self.observer, self.topics, group.check_alive)
                 settled = time.monotonic() + SETTLE
                 self.observer.spin_until(
                     lambda: time.monotonic() >= settled, 5.0, "settling", group.check_alive

@@ -205,7 +205,6 @@ class JointController(Node):
         self._state_jumps = BackwardJumps()
         self._lag = Lag()  # how far behind the plant the joint states are taken
         self._realtime_plant = False  # known to be realtime (plant_mode): Lag judged
-        self._declared_realtime = False  # every joint_states publisher says mode: realtime
         self._jumps_said: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -611,7 +610,6 @@ class JointController(Node):
         """The plant mode watcher decided (executor thread): hand over to the control path.
         ``trigger`` is "state" behind a lockstep plant, "timer" behind any other."""
         self._realtime_plant = trigger == "timer"
-        self._declared_realtime = self._watcher.realtime
         self.control_path.post(self._follow_plant)
         if self.trigger_parameter == "auto":
             self.control_path.post(lambda: self._set_trigger(trigger, reason))
@@ -627,7 +625,7 @@ class JointController(Node):
         state answered: subscribing again would lose the states sent while the new reader
         is matched; CI lost one so, in tests that publish states themselves)."""
         newest_only = self._realtime_plant and (
-            self.trigger_parameter != "state" or self._declared_realtime
+            self.trigger_parameter != "state" or self._watcher.realtime
         )
         qos = REALTIME_STATE_QOS if newest_only else CONTROL_QOS
         if self._state_sub.qos_profile != qos:

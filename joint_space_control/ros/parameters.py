@@ -60,9 +60,7 @@ _ROS_PARAMETERS = ("use_sim_time", "start_type_description_service")
 def doubles(specs: Iterable[ParamSpec]) -> frozenset[str]:
     """The names of the parameters typed DOUBLE (one number with a float default)."""
     return frozenset(
-        spec.name
-        for spec in specs
-        if spec.type == "number" and isinstance(spec.default, float) and not spec.dynamic
+        spec.name for spec in specs if spec.type == "number" and isinstance(spec.default, float)
     )
 
 

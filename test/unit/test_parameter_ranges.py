@@ -172,12 +172,13 @@ def test_every_value_a_scenario_sets_is_within_its_range(name):
 
 # -- a node --------------------------------------------------------------------------------
 @pytest.fixture
-def context():
+def context(request):
+    """A context of its own domain, with ``-p kp:=[100.0, 50.0]`` (or the ``--ros-args`` a
+    test gives through indirect parametrization)."""
+    args = getattr(request, "param", ["-p", "kp:=[100.0, 50.0]"])
     lease = lease_domain()
     ctx = Context()
-    rclpy.init(
-        args=["--ros-args", "-p", "kp:=[100.0, 50.0]"], context=ctx, domain_id=lease.domain_id
-    )
+    rclpy.init(args=["--ros-args", *args], context=ctx, domain_id=lease.domain_id)
     try:
         yield ctx
     finally:
@@ -222,30 +223,24 @@ def test_a_controller_refuses_a_per_joint_list_out_of_range_and_keeps_the_old_ga
         node.destroy_node()
 
 
-def test_a_whole_number_for_a_double_is_taken_at_start_and_at_runtime():
+@pytest.mark.parametrize("context", [["-p", "rate:=250"]], indirect=True)
+def test_a_whole_number_for_a_double_is_taken_at_start_and_at_runtime(context):
     """``rate: 250`` in a params file or ``-p rate:=250`` is an INTEGER to rclpy, which
     refused it for a DOUBLE parameter (the node stopped); ``ros2 param set ... rate 300``
     too. Both are taken as doubles; an integer parameter stays one, a string is refused."""
-    lease = lease_domain()
-    ctx = Context()
-    rclpy.init(args=["--ros-args", "-p", "rate:=250"], context=ctx, domain_id=lease.domain_id)
+    node = Node("whole", context=context, start_parameter_services=False)
     try:
-        node = Node("whole", context=ctx, start_parameter_services=False)
-        try:
-            declare(node, [RATE, SEED])
-            rate = node.get_parameter("rate")
-            assert rate.type_ == Parameter.Type.DOUBLE and rate.value == 250.0
-            (result,) = node.set_parameters([Parameter("rate", value=300)])
-            assert result.successful, result.reason
-            assert node.get_parameter("rate").type_ == Parameter.Type.DOUBLE
-            assert node.get_parameter("rate").value == 300.0
-            (result,) = node.set_parameters([Parameter("seed", value=7)])
-            assert result.successful and node.get_parameter("seed").value == 7
-            assert node.get_parameter("seed").type_ == Parameter.Type.INTEGER
-            (result,) = node.set_parameters([Parameter("rate", value="fast")])
-            assert result.successful is False and node.get_parameter("rate").value == 300.0
-        finally:
-            node.destroy_node()
+        declare(node, [RATE, SEED])
+        rate = node.get_parameter("rate")
+        assert rate.type_ == Parameter.Type.DOUBLE and rate.value == 250.0
+        (result,) = node.set_parameters([Parameter("rate", value=300)])
+        assert result.successful, result.reason
+        assert node.get_parameter("rate").type_ == Parameter.Type.DOUBLE
+        assert node.get_parameter("rate").value == 300.0
+        (result,) = node.set_parameters([Parameter("seed", value=7)])
+        assert result.successful and node.get_parameter("seed").value == 7
+        assert node.get_parameter("seed").type_ == Parameter.Type.INTEGER
+        (result,) = node.set_parameters([Parameter("rate", value="fast")])
+        assert result.successful is False and node.get_parameter("rate").value == 300.0
     finally:
-        rclpy.shutdown(context=ctx)
-        lease.release()
+        node.destroy_node()
