@@ -6,7 +6,7 @@
 #   make system-deps   Debian packages the tests need beyond PyPI (xvfb, chromium), apt-get
 #                      for any missing
 #   make demo          short end-to-end demo into out/demo
-#   make stress        start/stop every executable 20 times with both signals (CI, ~4 min)
+#   make stress        start/stop every executable 20 times with both signals (CI, ~7 min)
 #   make fault-soak    jsc soak --faults' short form: every fault kind once (~3.5 min; CI
 #                      runs it within make test-long)
 #   make colcon-check  colcon build into build/colcon_ws and check the ament layout
