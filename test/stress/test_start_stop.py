@@ -119,9 +119,7 @@ def test_every_stop_is_clean(executable: str, tmp_path: Path) -> None:
                     node.signal(sig)
                     signalled = time.monotonic()
                     code = node.proc.wait(timeout=30)
-                    timings.append(
-                        f"{ready_at - started:.1f}/{time.monotonic() - signalled:.1f}"
-                    )
+                    timings.append(f"{ready_at - started:.1f}/{time.monotonic() - signalled:.1f}")
                     log = node.log()
                     assert code == 0, (k, sig.name, log)
                     assert "Traceback" not in log, (k, sig.name, log)
