@@ -49,6 +49,66 @@ def parse_rss_parts(status: str) -> dict[str, int]:
     return parts
 
 
+def parse_cpu_seconds(stat: str, ticks_per_second: float) -> float:
+    """CPU time [s] a process has used (user + system) from the text of
+    ``/proc/<pid>/stat``: its fields 14 and 15, counted after the command name, which is in
+    parentheses and may hold spaces or parentheses of its own."""
+    fields = stat.rpartition(")")[2].split()  # from field 3 (the state) on
+    return (int(fields[11]) + int(fields[12])) / ticks_per_second
+
+
+#: The columns of ``/proc/stat``'s ``cpu`` line, in the kernel's order.
+_CPU_COLUMNS = ("user", "nice", "system", "idle", "iowait", "irq", "softirq", "steal")
+
+
+def parse_system_cpu(stat: str, ticks_per_second: float) -> dict[str, float]:
+    """The machine's CPU time [s] since boot, summed over its cores, from the text of
+    ``/proc/stat``: ``busy`` (user, nice, system, irq, softirq), ``idle`` (idle, iowait) and
+    ``steal`` (time the hypervisor gave another guest: a slower machine that no process of
+    this one caused)."""
+    line = next(row for row in stat.splitlines() if row.startswith("cpu "))
+    ticks = dict(zip(_CPU_COLUMNS, (int(x) for x in line.split()[1:]), strict=False))
+    busy = sum(ticks.get(k, 0) for k in ("user", "nice", "system", "irq", "softirq"))
+    idle = ticks.get("idle", 0) + ticks.get("iowait", 0)
+    return {
+        "busy": busy / ticks_per_second,
+        "idle": idle / ticks_per_second,
+        "steal": ticks.get("steal", 0) / ticks_per_second,
+    }
+
+
+def cores_used(
+    times_s: Sequence[float], cpu_s: Sequence[float], window_s: float = 60.0
+) -> tuple[float, float]:
+    """Cores a process kept busy from samples of its CPU time: the mean over the samples'
+    span, and the highest mean over ``window_s`` (between the samples nearest that apart).
+    NaN for both with fewer than two samples."""
+    t = np.asarray(times_s, dtype=float)
+    c = np.asarray(cpu_s, dtype=float)
+    if t.size < 2 or t[-1] <= t[0]:
+        return math.nan, math.nan
+    mean = float((c[-1] - c[0]) / (t[-1] - t[0]))
+    ends = np.searchsorted(t, t + window_s)  # the first sample at least window_s later
+    inside = ends < t.size
+    if not inside.any():
+        return mean, mean
+    start = np.flatnonzero(inside)
+    end = ends[inside]
+    rates = (c[end] - c[start]) / (t[end] - t[start])
+    return mean, float(rates.max())
+
+
+def format_cpu(series: Mapping[str, tuple[Sequence[float], Sequence[float]]]) -> str:
+    """One line per process (or the machine's ``busy`` and ``steal``): the cores it kept
+    busy, on average and in its busiest minute."""
+    lines = ["CPU (cores kept busy: mean, busiest minute):"]
+    for name, (t, cpu) in series.items():
+        mean, peak = cores_used(t, cpu)
+        if not math.isnan(mean):
+            lines.append(f"  {name:34s} {mean:5.2f} {peak:5.2f}")
+    return "\n".join(lines)
+
+
 def slope_per_minute(times_s: Sequence[float], values: Sequence[float]) -> float:
     r"""Least-squares slope of ``values`` over ``times_s`` [s], per minute:
     b = Σ(tᵢ − t̄)(yᵢ − ȳ) / Σ(tᵢ − t̄)² · 60. NaN with fewer than two distinct times."""

@@ -180,6 +180,8 @@ def format_fault_report(report: dict[str, Any]) -> str:
         f"{report['other_commands']}",
         "bags: " + ", ".join(f"{Path(b['path']).name} {b['status']}" for b in report["bags"]),
         "",
+        report["cpu_text"],
+        "",
         "criteria:",
     ]
     for c in report["criteria"]:

@@ -63,6 +63,7 @@ from joint_space_control.analysis.soak_metrics import (
     RSS_PARTS,
     CommandAudit,
     Criterion,
+    format_cpu,
     move_targets,
     passed,
 )
@@ -77,7 +78,9 @@ from joint_space_control.experiments.soak import (
     MOVE_TIME,
     SETTLE,
     SoakObserver,
+    cpu_of,
     memory_of,
+    system_cpu,
 )
 from joint_space_control.json_values import jsonable
 from joint_space_control.model.dynamics import RobotModel
@@ -197,6 +200,9 @@ class FaultSoak:
         self.memory: dict[str, tuple[list[float], list[int]]] = {}
         # per sample, VmRSS's parts [bytes]: the process's own memory or mapped segments
         self.memory_parts: dict[str, list[dict[str, int]]] = {}
+        # CPU time [s] at each sample, per process incarnation, of this harness ("soak") and
+        # of the machine ("machine busy", "machine steal"): who was busy when a loop slowed
+        self.cpu: dict[str, tuple[list[float], list[float]]] = {}
         self.pids: dict[str, int] = {}
         self._unmatched = ""  # why the restarted recorder was last found not matched
         self.crash: str | None = None
@@ -285,6 +291,14 @@ class FaultSoak:
                 self.memory[key][0].append(now)
                 self.memory[key][1].append(found[0])
                 self.memory_parts.setdefault(key, []).append(found[1])
+        used = {key: cpu_of(pid) for key, pid in [*self.pids.items(), ("soak", os.getpid())]}
+        machine = system_cpu()
+        used["machine busy"], used["machine steal"] = machine["busy"], machine["steal"]
+        for key, seconds in used.items():
+            if seconds is not None:
+                t, cpu = self.cpu.setdefault(key, ([], []))
+                t.append(now)
+                cpu.append(seconds)
 
     def wait_running(self, what: str) -> None:
         """Until the controller's commands flow again (:data:`RUNNING_COMMANDS` more)."""
@@ -742,6 +756,9 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
             }
             for key, (t, rss) in soak.memory.items()
         },
+        # every sample, [s from the start, CPU s used], and the cores each kept busy
+        "cpu_samples": {key: {"t": t, "cpu_s": cpu} for key, (t, cpu) in soak.cpu.items()},
+        "cpu_text": format_cpu(soak.cpu),
         "tracebacks": found,
         # what each node said: its loop per 10 s (/diagnostics), its log's warnings
         "loops": {name: [asdict(w) for w in rows] for name, rows in loops.items()},

@@ -47,7 +47,9 @@ from joint_space_control.analysis.soak_metrics import (
     memory_summary,
     move_targets,
     numeric_values,
+    parse_cpu_seconds,
     parse_rss_parts,
+    parse_system_cpu,
     parse_vmrss,
     passed,
     verdict,
@@ -84,6 +86,8 @@ MOVE_PERIOD = 4.0
 MOVE_TIME = 2.0
 #: Seconds between memory samples; default warm-up [s] left out of the growth fit.
 SAMPLE_PERIOD = 2.0
+#: The kernel's unit of CPU time in /proc [ticks per second].
+CLOCK_TICKS = float(os.sysconf("SC_CLK_TCK"))
 WARMUP = 10.0
 #: Wait [s] between the graph being complete and the start (every endpoint matched).
 SETTLE = 1.0
@@ -128,6 +132,21 @@ def memory_of(pid: int) -> tuple[int, dict[str, int]] | None:
         return None
     rss = parse_vmrss(status)
     return None if rss is None else (rss, parse_rss_parts(status))
+
+
+def cpu_of(pid: int) -> float | None:
+    """CPU time [s] a process has used, None when it is gone."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return parse_cpu_seconds(f.read(), CLOCK_TICKS)
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def system_cpu() -> dict[str, float]:
+    """The machine's busy, idle and stolen CPU time [s] since boot (:func:`parse_system_cpu`)."""
+    with open("/proc/stat") as f:
+        return parse_system_cpu(f.read(), CLOCK_TICKS)
 
 
 class SoakObserver(RosClient):

@@ -14,12 +14,16 @@ from joint_space_control.analysis.soak_metrics import (
     CommandAudit,
     Thresholds,
     UpdateTally,
+    cores_used,
+    format_cpu,
     largest_step,
     median_slope_per_minute,
     memory_summary,
     move_targets,
     numeric_values,
+    parse_cpu_seconds,
     parse_rss_parts,
+    parse_system_cpu,
     parse_vmrss,
     passed,
     plateaus,
@@ -239,3 +243,33 @@ def test_the_slope_between_steps():
     summary = memory_summary(t, rising * MB, warmup_s=0.0)
     assert summary["steps"] == 3 and summary["steps_mb"] == pytest.approx(72.0, abs=0.1)
     assert summary["steady_slope_mb_per_min"] * 60.0 == pytest.approx(20.0, rel=1e-9)
+
+
+def test_cpu_seconds_are_user_plus_system_after_a_command_name_with_spaces_and_parentheses():
+    # fields 14 (utime) and 15 (stime) of proc(5); the name would shift a naive split
+    stat = "4242 (sim (bridge) x) S 1 4242 4242 0 -1 4194560 900 0 0 0 1234 567 0 0 -51 0 9"
+    assert parse_cpu_seconds(stat, 100.0) == pytest.approx(18.01)
+
+
+def test_system_cpu_splits_busy_idle_and_steal():
+    stat = "cpu  100 5 50 1000 20 3 2 40 0 0\ncpu0 50 2 25 500 10 1 1 20 0 0\nintr 1\n"
+    cpu = parse_system_cpu(stat, 100.0)
+    assert cpu == pytest.approx({"busy": 1.60, "idle": 10.20, "steal": 0.40})
+
+
+def test_cores_used_is_the_mean_and_the_busiest_minute():
+    # a process at a quarter of a core for 2 minutes, then a whole core for 1 minute
+    t = np.arange(0.0, 181.0, 2.0)
+    cpu = np.where(t <= 120, 0.25 * t, 30.0 + (t - 120))
+    mean, peak = cores_used(t, cpu)
+    assert mean == pytest.approx(90.0 / 180.0)
+    assert peak == pytest.approx(1.0)
+    assert all(math.isnan(x) for x in cores_used([0.0], [1.0]))
+    # shorter than the window: the busiest minute is the mean
+    assert cores_used([0.0, 10.0], [0.0, 5.0]) == pytest.approx((0.5, 0.5))
+
+
+def test_format_cpu_names_each_process_and_leaves_out_one_sample():
+    text = format_cpu({"sim_bridge.0": ([0.0, 60.0], [0.0, 24.0]), "dashboard.1": ([5.0], [1.0])})
+    assert "sim_bridge.0" in text and " 0.40  0.40" in text
+    assert "dashboard.1" not in text
