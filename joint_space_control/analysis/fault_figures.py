@@ -3,9 +3,9 @@
 :func:`fault_figure` draws the tracking error e = maxⱼ |q_d,ⱼ − qⱼ| [rad] over the whole run
 (log scale, wall time in minutes from the start) with the tracking bound dashed, and every
 fault: a line at its start and a band until tracking was back (its end plus the recovery
-time, or the next fault when it never was), coloured by kind (legend), numbered at the top;
-a fault after which tracking did not come back is marked ✗. Stretches without controller
-rows (a dead controller, a recorder down) are left blank.
+time, or the next fault when it never was), coloured by kind (legend), numbered at the top
+from 1 as the soak prints them; a fault after which tracking did not come back is marked ✗.
+Stretches without controller rows (a dead controller, a recorder down) are left blank.
 """
 
 from __future__ import annotations
@@ -127,7 +127,7 @@ def fault_figure(
         ax.text(
             x0,
             1.005,
-            str(fault.index),
+            str(fault.index + 1),
             transform=ax.get_xaxis_transform(),
             rotation=90,
             ha="center",
@@ -169,9 +169,11 @@ def fault_figure(
     span = max([(x - t0) / 60.0 for x in ends if math.isfinite(x)], default=1.0)
     ax.set_xlim(0.0, max(span, 1e-3))
     not_back = sum(math.isnan(o.recovery_s) for o in outcomes)
+    verdict = ""
+    if outcomes:
+        verdict = f" ({not_back} not back, marked ✗)" if not_back else " (every one back)"
     fig.suptitle(
-        f"{title}: {len(faults)} faults, tracking error over {span:.1f} min"
-        + (f" ({not_back} not back ✗)" if outcomes else ""),
+        f"{title}: {len(faults)} faults, tracking error over {span:.1f} min{verdict}",
         fontsize=11,
     )
     fig.savefig(path, dpi=DPI)
