@@ -128,6 +128,7 @@ from joint_space_control.trajectories.reference import Trajectory
 COUNTERS = (
     "rejected.joint_states",
     "rejected.references",
+    "superseded.references",
     "rejected.parameters",
     "dropped.nonfinite_torques",
     "stale.stops",
@@ -227,6 +228,11 @@ class JointController(Node):
         self._reference_builder = ReferenceBuilder()
         prepare_reference_reader()
         self._generation = 0  # incremented by a restart
+        # references take effect in the order they arrived: the arrival number of each, and
+        # of the newest taken (a large one built off the control path must not replace a
+        # small one that arrived after it and was taken at once)
+        self._arrivals = 0
+        self._taken = 0
         self._answered_ns = -1
         # header.frame_id names the commander: the plant accepts one at a time (docs/safety.md)
         self._command = JointStateImage(
@@ -434,8 +440,10 @@ class JointController(Node):
             return
         now = self._now()
         large = len(raw) > IN_THREAD_BYTES
+        self._arrivals += 1
+        arrived = self._arrivals
         if self.trigger == "state" and not large:
-            self._take_reference(self._build_reference(raw, now), self._generation)
+            self._take_reference(self._build_reference(raw, now), self._generation, arrived)
             return
         if self.trigger == "state" and not self._realtime_plant:
             # a large one in the builder's process, waited for: its hundreds of thousands
@@ -444,11 +452,13 @@ class JointController(Node):
             built = self._reference_builder.build(
                 raw, self.joints, now, self.model.position_limits
             )
-            self._take_reference(built, self._generation)
+            self._take_reference(built, self._generation, arrived)
             give_back_free_memory()  # what taking it freed (the transfer, the old pages)
             return
         try:
-            self._reference_thread.submit(self._prepare_reference, raw, now, self._generation)
+            self._reference_thread.submit(
+                self._prepare_reference, raw, now, self._generation, arrived
+            )
         except RuntimeError:  # the thread is shut down: the node is closing
             pass
 
@@ -460,27 +470,47 @@ class JointController(Node):
         except ValueError as err:
             return str(err)
 
-    def _prepare_reference(self, raw: bytes, arrival: float, generation: int) -> None:
+    def _prepare_reference(
+        self, raw: bytes, arrival: float, generation: int, arrived: int
+    ) -> None:
         """The reference thread: build, then hand over to the control path."""
         result = self._reference_builder.build(
             raw, self.joints, arrival, self.model.position_limits
         )
-        self.control_path.post(lambda: self._take_reference(result, generation, arrival))
+        self.control_path.post(lambda: self._take_reference(result, generation, arrived, arrival))
 
     def _take_reference(
-        self, result: Trajectory | str, generation: int, arrival: float | None = None
+        self,
+        result: Trajectory | str,
+        generation: int,
+        arrived: int,
+        arrival: float | None = None,
     ) -> None:
         """Schedule a built trajectory, or count and say why it was rejected (control
         path); one built before a restart is dropped (the restart forgot the references).
-        One built off the control path from its ``arrival`` whose stamp was zero ("now")
-        starts now, when it is taken, as joint_trajectory_controller starts such a
-        trajectory at its first sample: its beginning is not lost to the build time."""
+        ``arrived`` numbers the references as they arrived: one whose build ended after a
+        newer one was taken is dropped, counted in ``superseded.references`` (behind a
+        realtime plant with ``trigger: state``, a large reference is built off the control
+        path while a small one is taken at once: swapped in seconds later, the fault soak's
+        100,000-point reference sent q_d back 2.7 rad, to where the arm had been). One built
+        off the control path from its ``arrival`` whose stamp was zero ("now") starts now,
+        when it is taken, as joint_trajectory_controller starts such a trajectory at its
+        first sample: its beginning is not lost to the build time."""
         if generation != self._generation:
             return
         if isinstance(result, str):
             self.counts["rejected.references"] += 1
             self._log.warning("rejected reference", "rejected reference: {}", result)
             return
+        if arrived < self._taken:
+            self.counts["superseded.references"] += 1
+            self._log.warning(
+                "superseded reference",
+                "dropped a reference of {} point(s) built after a newer one was taken",
+                len(result.times),
+            )
+            return
+        self._taken = arrived
         if arrival is not None and result.start == arrival:
             result = dataclasses.replace(result, start=self._now())
         self.core.add_trajectory(result)

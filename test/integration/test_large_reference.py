@@ -30,7 +30,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from joint_space_control.ros.diagnostics import statuses
 
 from .conftest import GAINS
-from .test_faults import ROBOT, J, Rig, rig  # noqa: F401  (the fixture)
+from .test_faults import ROBOT, J, Rig, reference, rig  # noqa: F401  (the fixture)
 
 pytestmark = [pytest.mark.integration, pytest.mark.realtime]
 
@@ -123,3 +123,39 @@ def test_a_100000_point_reference_does_not_stall_the_realtime_loop(rig: Rig, tri
     assert worst < max(STALL_US, USUAL_RATIO * worst_before), (worst, worst_before)
     log = controller.log()
     assert "rejected" not in log and "Traceback" not in log
+
+
+def test_a_large_reference_does_not_replace_a_newer_one_taken_while_it_was_built(rig: Rig):  # noqa: F811
+    """References take effect in the order they arrive. Behind a realtime plant with
+    ``trigger: state`` a small reference is taken at once and a large one is built off the
+    control path: the 100,000-point one sent first must not replace, when its build ends,
+    the step sent 0.3 s after it. In the fault soak it did, seconds later, and sent q_d back
+    2.7 rad to where the arm had been (the controller clamped 5e6 N·m). On the old code
+    the arm went back to Q0 and no ``superseded.references`` was counted."""
+    rig.group.start(
+        "sim_bridge",
+        {"robot": ROBOT, "mode": "realtime", "initial_positions": Q0, "command_timeout": 1.0},
+    )
+    controller = rig.group.start(
+        "pd_gravity_controller",
+        {"robot": ROBOT, **GAINS[ROBOT], "use_sim_time": True, "trigger": "state"},
+    )
+    probe = rig.probe
+    rig.diagnostics("sim_bridge", lambda s: not s["braking"])
+    references = rig.publisher(JointTrajectory, "reference")
+    references.publish(sine_reference(POINTS))  # about Q0
+    probe.spin_for(0.3)
+    target = [Q0[0] + 0.3, Q0[1] - 0.2]
+    references.publish(reference([(0.5, target)]))
+    status = rig.diagnostics(
+        "pd_gravity_controller", lambda s: s["superseded.references"] >= 1, timeout=60.0
+    )
+    probe.spin_for(3.0)  # the step is over (0.5 s) and PD + g has settled on it
+    q = np.array(probe.recording.positions[-1])
+    log = controller.log()
+    print(f"q {q}, target {target}; superseded {status['superseded.references']}")
+    assert status["superseded.references"] == 1
+    assert f"dropped a reference of {POINTS} point(s) built after a newer one" in log
+    assert f"reference accepted: {POINTS} point(s)" not in log
+    assert np.abs(q - target).max() < 0.02, (q, target)
+    assert "Traceback" not in log
