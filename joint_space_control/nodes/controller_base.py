@@ -227,12 +227,12 @@ class JointController(Node):
         self._reference_thread = ThreadPoolExecutor(1, thread_name_prefix="references")
         self._reference_builder = ReferenceBuilder()
         prepare_reference_reader()
-        self._generation = 0  # incremented by a restart
-        # references take effect in the order they arrived: the arrival number of each, and
-        # of the newest taken (a large one built off the control path must not replace a
-        # small one that arrived after it and was taken at once)
+        # references are numbered as they arrive: they take effect in that order (a large
+        # one built off the control path must not replace a small one that arrived after it
+        # and was taken at once), and a restart forgets those that arrived before it
         self._arrivals = 0
-        self._taken = 0
+        self._taken = 0  # the newest taken
+        self._forgotten = 0  # the newest when the controller last restarted
         self._answered_ns = -1
         # header.frame_id names the commander: the plant accepts one at a time (docs/safety.md)
         self._command = JointStateImage(
@@ -443,7 +443,7 @@ class JointController(Node):
         self._arrivals += 1
         arrived = self._arrivals
         if self.trigger == "state" and not large:
-            self._take_reference(self._build_reference(raw, now), self._generation, arrived)
+            self._take_reference(self._build_reference(raw, now), arrived)
             return
         if self.trigger == "state" and not self._realtime_plant:
             # a large one in the builder's process, waited for: its hundreds of thousands
@@ -452,13 +452,11 @@ class JointController(Node):
             built = self._reference_builder.build(
                 raw, self.joints, now, self.model.position_limits
             )
-            self._take_reference(built, self._generation, arrived)
+            self._take_reference(built, arrived)
             give_back_free_memory()  # what taking it freed (the transfer, the old pages)
             return
         try:
-            self._reference_thread.submit(
-                self._prepare_reference, raw, now, self._generation, arrived
-            )
+            self._reference_thread.submit(self._prepare_reference, raw, now, arrived)
         except RuntimeError:  # the thread is shut down: the node is closing
             pass
 
@@ -470,25 +468,19 @@ class JointController(Node):
         except ValueError as err:
             return str(err)
 
-    def _prepare_reference(
-        self, raw: bytes, arrival: float, generation: int, arrived: int
-    ) -> None:
+    def _prepare_reference(self, raw: bytes, arrival: float, arrived: int) -> None:
         """The reference thread: build, then hand over to the control path."""
         result = self._reference_builder.build(
             raw, self.joints, arrival, self.model.position_limits
         )
-        self.control_path.post(lambda: self._take_reference(result, generation, arrived, arrival))
+        self.control_path.post(lambda: self._take_reference(result, arrived, arrival))
 
     def _take_reference(
-        self,
-        result: Trajectory | str,
-        generation: int,
-        arrived: int,
-        arrival: float | None = None,
+        self, result: Trajectory | str, arrived: int, arrival: float | None = None
     ) -> None:
         """Schedule a built trajectory, or count and say why it was rejected (control
-        path); one built before a restart is dropped (the restart forgot the references).
-        ``arrived`` numbers the references as they arrived: one whose build ended after a
+        path). ``arrived`` numbers the references as they arrived: one that arrived before a
+        restart is dropped (the restart forgot the references); one whose build ended after a
         newer one was taken is dropped, counted in ``superseded.references`` (behind a
         realtime plant with ``trigger: state``, a large reference is built off the control
         path while a small one is taken at once: swapped in seconds later, the fault soak's
@@ -496,7 +488,7 @@ class JointController(Node):
         off the control path from its ``arrival`` whose stamp was zero ("now") starts now,
         when it is taken, as joint_trajectory_controller starts such a trajectory at its
         first sample: its beginning is not lost to the build time."""
-        if generation != self._generation:
+        if arrived <= self._forgotten:
             return
         if isinstance(result, str):
             self.counts["rejected.references"] += 1
@@ -631,7 +623,7 @@ class JointController(Node):
             self.get_logger().error(text)
 
     def _restart(self) -> None:
-        self._generation += 1  # references being built now are of the time before
+        self._forgotten = self._arrivals  # references being built now are of the time before
         with self._lock:  # gains designed at start: again at the next state
             self.core.restart()
 
