@@ -11,6 +11,7 @@ import importlib.metadata
 import os
 import platform
 import sys
+import timeit
 from pathlib import Path
 from typing import Any
 
@@ -36,16 +37,40 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+def python_speed_us(repeat: int = 5, number: int = 1000) -> float:
+    """A yardstick of this machine for the Python the loop's nodes run: the best of
+    ``repeat`` timings of ``sum(range(1000))`` [µs] (``python -m timeit "sum(range(1000))"``).
+
+    The same CPU model can run it several times slower on a loaded or throttled host, and a
+    realtime loop's figures mean little without it: about 10 µs on the machines where the
+    1 kHz fault soak passed its hour, 28–43 µs on a VM where the 1 kHz loop could not keep
+    up beside the rest of the run (docs/safety.md)."""
+    timer = timeit.Timer("sum(range(1000))")
+    return min(timer.repeat(repeat=repeat, number=number)) / number * 1e6
+
+
 def machine() -> dict[str, Any]:
-    """CPU, cores (all and usable by this process), platform and load averages now."""
+    """CPU, cores (all and usable by this process), platform, load averages and
+    :func:`python_speed_us` now."""
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
     return {
         "cpu": cpu_model(),
+        "python_speed_us": round(python_speed_us(), 1),
         "cores": os.cpu_count(),
         "cores_usable": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
         "platform": platform.platform(),
         "load_average_1_5_15": [round(x, 2) for x in load],
     }
+
+
+def describe(found: dict[str, Any]) -> str:
+    """One line of :func:`machine`'s answer: CPU, cores, the Python yardstick (when measured),
+    load averages."""
+    speed = found.get("python_speed_us")
+    yardstick = f", sum(range(1000)) in {speed:g} µs" if speed is not None else ""
+    return (
+        f"{found['cpu']}, {found['cores']} cores{yardstick}, load {found['load_average_1_5_15']}"
+    )
 
 
 def versions() -> dict[str, str]:

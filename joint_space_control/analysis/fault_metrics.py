@@ -49,7 +49,7 @@ KINDS = (
     "kill_dashboard",
     "second_clock",
 )
-#: Plant state period of the fault soak (1 kHz) [ns].
+#: Plant state period of the fault soak at its default rate (1 kHz) [ns].
 PERIOD_NS = 1_000_000
 
 
@@ -138,8 +138,8 @@ class FaultThresholds:
     tracking_bound: float = 0.02
     #: … held this long [s] for tracking to count as back.
     hold_s: float = 1.0
-    #: Longer than this [s] without a controller row counts as not tracking (1 kHz rows; the
-    #: recorder may receive late under CPU load, hence the margin).
+    #: Longer than this [s] without a controller row counts as not tracking (a row per
+    #: period; the recorder may receive late under CPU load, hence the margin).
     max_gap_s: float = 0.1
     #: Largest recovery time after a fault's end [s].
     max_recovery_s: float = 10.0
@@ -404,7 +404,7 @@ def evaluate(
                 lost=int(gap_missing[in_gap].sum()),
                 lost_inside=int(gap_missing[in_gap & gap_inside].sum()),
                 lost_at_kill=(
-                    _lost_at_kill(fault, timeline.bags, kills)
+                    _lost_at_kill(fault, timeline.bags, kills, 1e9 / th.period_ns)
                     if fault.kind == "kill_recorder"
                     else None
                 ),
@@ -439,13 +439,16 @@ def _nanmax(x: np.ndarray) -> float:
     return float(finite.max()) if finite.size else math.nan
 
 
-def _lost_at_kill(fault: FaultRecord, bags: Sequence[BagSpan], kills: int) -> int | None:
-    """:func:`states_lost_at_kill` of the bag the killed recorder was writing: with the bags
-    in recording order, one per recorder incarnation, the m-th kill (from 0) ends bag m.
-    None when there is no such bag or it holds no message."""
+def _lost_at_kill(
+    fault: FaultRecord, bags: Sequence[BagSpan], kills: int, rate_hz: float
+) -> int | None:
+    """:func:`states_lost_at_kill` of the bag the killed recorder was writing (the plant
+    publishing at ``rate_hz``): with the bags in recording order, one per recorder
+    incarnation, the m-th kill (from 0) ends bag m. None when there is no such bag or it
+    holds no message."""
     if kills >= len(bags) or not math.isfinite(bags[kills].last):
         return None
-    return states_lost_at_kill(fault.start, bags[kills].last)
+    return states_lost_at_kill(fault.start, bags[kills].last, rate_hz)
 
 
 # --------------------------------------------------------------------------- per kind

@@ -572,7 +572,7 @@ def format_table(result: dict[str, Any]) -> str:
     m, v = result["machine"], result["versions"]
     lines = [
         f"jsc bench  {result['started']}  ({result.get('duration_s', 0):.0f} s)",
-        f"machine: {m['cpu']}, {m['cores']} cores, load {m['load_average_1_5_15']}",
+        f"machine: {machine.describe(m)}",
         "versions: " + ", ".join(f"{k} {val}" for k, val in v.items()),
         "",
     ]

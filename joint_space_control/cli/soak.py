@@ -10,13 +10,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from joint_space_control.machine import describe
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Register ``jsc soak``."""
     p = subparsers.add_parser(
         "soak",
-        help="soak run: realtime 1 kHz loop for minutes, gains changed every second; memory "
-        "growth, command safety, parameter updates; writes soak.json, non-zero exit on fail",
+        help="soak run: realtime 1 kHz loop (--rate) for minutes, gains changed every "
+        "second; memory growth, command safety, parameter updates; writes soak.json, non-zero "
+        "exit on fail",
     )
     p.add_argument(
         "--minutes", type=float, default=None, help="run length [min] (10; with --faults 60)"
@@ -35,6 +38,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="inject one fault every --period (default a minute; --minutes defaults to 60): "
         "every kind at least once, judged from the bags (docs/safety.md, Fault soak)",
     )
+    p.add_argument(
+        "--rate",
+        type=float,
+        default=1000.0,
+        help="the plant's joint states and so the loop [Hz], a divisor of its 1 kHz physics "
+        "(1000): less on a machine too slow to run the loop at 1 kHz beside the rest of the "
+        "run (docs/safety.md, Fault soak)",
+    )
     p.add_argument("--seed", type=int, default=0, help="--faults: the schedule's seed (0)")
     p.add_argument(
         "--period", type=float, default=60.0, help="--faults: seconds between faults (60)"
@@ -45,9 +56,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def _handle(args: argparse.Namespace) -> int:
     if args.faults:
         minutes = 60.0 if args.minutes is None else args.minutes
-        return run_faults(args.out, minutes, args.period, args.seed, args.robot, args.controller)
+        return run_faults(
+            args.out, minutes, args.period, args.seed, args.robot, args.controller, args.rate
+        )
     minutes = 10.0 if args.minutes is None else args.minutes
-    return run(args.out, minutes, args.robot, args.controller)
+    return run(args.out, minutes, args.robot, args.controller, args.rate)
 
 
 def _num(value: Any, fmt: str = "{:.0f}") -> str:
@@ -62,8 +75,7 @@ def format_report(report: dict[str, Any]) -> str:
         f"soak {report['robot']} {report['controller']}: {report['duration_s'] / 60:.2f} min "
         f"realtime at {report['rate_hz']:g} Hz, warm-up {report['warmup_s']:g} s, "
         f"started {report['started_utc']}",
-        f"machine: {report['machine']['cpu']}, {report['machine']['cores']} cores, "
-        f"load {report['machine']['load_average_1_5_15']}, CPU steal "
+        f"machine: {describe(report['machine'])}, CPU steal "
         + _num(report.get("cpu_steal_fraction"), "{:.1%}"),
         "source: "
         + (
@@ -123,7 +135,7 @@ def format_report(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run(out: Path, minutes: float, robot: str, law: str) -> int:
+def run(out: Path, minutes: float, robot: str, law: str, rate: float = 1000.0) -> int:
     # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
     from joint_space_control.experiments.soak import CONTROLLERS, SoakOptions
     from joint_space_control.experiments.soak import run as run_soak
@@ -134,7 +146,11 @@ def run(out: Path, minutes: float, robot: str, law: str) -> int:
     if minutes <= 0:
         print("jsc soak: error: --minutes must be > 0", file=sys.stderr)
         return 2
-    options = SoakOptions(minutes=minutes, robot=robot, law=law)
+    try:
+        options = SoakOptions(minutes=minutes, robot=robot, law=law, rate=rate)
+    except ValueError as exc:
+        print(f"jsc soak: error: --rate: {exc}", file=sys.stderr)
+        return 2
     return _run_and_print(
         lambda: run_soak(out, options, _say), format_report, Path(out), "soak.json"
     )
@@ -166,9 +182,10 @@ def format_fault_report(report: dict[str, Any]) -> str:
     o = report["options"]
     states = report["states"]
     lines = [
-        f"soak with faults: {o['robot']} {o['controller']}, {report['duration_s'] / 60:.2f} min, "
+        f"soak with faults: {o['robot']} {o['controller']}, realtime "
+        f"{o.get('rate_hz', 1000.0):g} Hz, {report['duration_s'] / 60:.2f} min, "
         f"{len(report['faults'])} faults (a fault every {o['period_s']:g} s, seed {o['seed']})",
-        f"machine: {report['machine']['cpu']}, {report['machine']['cores']} cores",
+        f"machine: {describe(report['machine'])}",
         "",
         report["by_kind_text"],
         "",
@@ -195,7 +212,15 @@ def format_fault_report(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run_faults(out: Path, minutes: float, period: float, seed: int, robot: str, law: str) -> int:
+def run_faults(
+    out: Path,
+    minutes: float,
+    period: float,
+    seed: int,
+    robot: str,
+    law: str,
+    rate: float = 1000.0,
+) -> int:
     from joint_space_control.experiments.fault_soak import FaultSoakOptions
     from joint_space_control.experiments.fault_soak import run as run_fault_soak
 
@@ -205,7 +230,13 @@ def run_faults(out: Path, minutes: float, period: float, seed: int, robot: str, 
             file=sys.stderr,
         )
         return 2
-    options = FaultSoakOptions(minutes=minutes, period=period, seed=seed, robot=robot, law=law)
+    try:
+        options = FaultSoakOptions(
+            minutes=minutes, period=period, seed=seed, robot=robot, law=law, rate=rate
+        )
+    except ValueError as exc:
+        print(f"jsc soak: error: --rate: {exc}", file=sys.stderr)
+        return 2
     return _run_and_print(
         lambda: run_fault_soak(out, options, _say),
         format_fault_report,

@@ -1,7 +1,8 @@
 """``jsc soak --faults``: the realtime loop for an hour, one fault a minute, and what was
 recorded says whether it survived each.
 
-The loop is what a user runs: ``sim_bridge`` (realtime, 1 kHz), one controller answering every
+The loop is what a user runs: ``sim_bridge`` (realtime, 1 kHz physics, joint states at
+``--rate``, 1 kHz unless a slower machine needs less), one controller answering every
 joint state, the ``recorder`` writing a bag on the system clock (so that a restarted simulator,
 whose time starts again at 0, does not send the bag back in time), the ``dashboard``, each a
 process in a leased ROS domain with localhost discovery, and the reference generator, the
@@ -76,8 +77,10 @@ from joint_space_control.experiments.soak import (
     GAIN_SETS,
     MOVE_PERIOD,
     MOVE_TIME,
+    PHYSICS_RATE,
     SETTLE,
     SoakObserver,
+    check_loop_rate,
     cpu_of,
     memory_of,
     system_cpu,
@@ -140,6 +143,10 @@ class FaultSoakOptions:
     robot: str = "iiwa"
     law: str = "inverse_dynamics"
     kinds: tuple[str, ...] = tuple(KINDS)
+    rate: float = PHYSICS_RATE  # [Hz] the plant's joint states, and so the loop's rate
+
+    def __post_init__(self) -> None:
+        check_loop_rate(self.rate)
 
     @property
     def seconds(self) -> float:
@@ -223,8 +230,8 @@ class FaultSoak:
             return {
                 "robot": robot,
                 "mode": "realtime",
-                "physics_rate": 1000.0,
-                "publish_rate": 1000.0,
+                "physics_rate": PHYSICS_RATE,
+                "publish_rate": self.options.rate,
                 "command_timeout": COMMAND_TIMEOUT,
                 "start_paused": not self.runs.get("sim_bridge"),  # the first waits for all
             }
@@ -528,7 +535,8 @@ class FaultSoak:
     def run(self) -> None:
         options = self.options
         self.log(
-            f"soak with faults: {options.robot} {self.controller}, realtime 1 kHz, "
+            f"soak with faults: {options.robot} {self.controller}, realtime "
+            f"{options.rate:g} Hz, "
             f"{options.minutes:g} min, a fault every {options.period:g} s "
             f"({len(self.schedule)} faults, seed {options.seed})"
         )
@@ -640,7 +648,7 @@ def run(
 
 def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, Any]:
     """What the bags, the logs and the memory samples say of the run."""
-    thresholds = FaultThresholds()
+    thresholds = FaultThresholds(period_ns=round(1e9 / soak.options.rate))
     faults = [FaultRecord(f.index, f.kind, f.start, f.end, f.detail) for f in soak.injected]
     timeline = read_timeline(soak.bags, f"/{soak.controller}/state", log=log)
     assessment = evaluate(faults, timeline, soak.limits, thresholds, run_end=soak.ended)
@@ -721,6 +729,7 @@ def assess(soak: FaultSoak, out: Path, log: Callable[[str], None]) -> dict[str, 
             "robot": options.robot,
             "controller": soak.controller,
             "kinds": list(options.kinds),
+            "rate_hz": options.rate,
         },
         "started": soak.started,
         "ended": soak.ended,

@@ -1,6 +1,7 @@
 """A soak run: the realtime loop at 1 kHz for minutes, gains changed every second.
 
-``sim_bridge`` (realtime, 1 kHz physics and joint states) and one controller answering every
+``sim_bridge`` (realtime, 1 kHz physics; joint states at 1 kHz, or at ``--rate`` on a machine
+too slow for that) and one controller answering every
 joint state run as separate processes in a leased ROS domain with localhost discovery. An
 observer node in this process
 
@@ -76,6 +77,10 @@ GAIN_SETS = {
     "pd_gravity": ({"kp": 100.0, "kd": 10.0}, {"kp": 150.0, "kd": 12.0}),
     "inverse_dynamics": ({"kp": 400.0, "kd": 40.0}, {"kp": 900.0, "kd": 60.0}),
 }
+#: The plant's physics rate [Hz]; its joint states, which the controller answers one by one,
+#: come at the loop's rate (``--rate``): 1 kHz, or a divisor of it on a machine too slow to
+#: run the loop at 1 kHz beside the rest of the run.
+PHYSICS_RATE = 1000.0
 #: The invalid update sent every tenth second (K_P must be > 0).
 INVALID_UPDATE = {"kp": -1.0}
 #: Seconds between gain changes, and every how many changes an invalid one follows.
@@ -98,6 +103,17 @@ COMMAND_QOS = QoSProfile(
 )
 
 
+def check_loop_rate(rate: float) -> None:
+    """ValueError unless ``rate`` [Hz] is a whole divisor of :data:`PHYSICS_RATE` (the plant
+    publishes every k-th physics step)."""
+    steps = PHYSICS_RATE / rate if math.isfinite(rate) and rate > 0 else math.nan
+    if not (math.isfinite(steps) and abs(steps - round(steps)) < 1e-9):
+        raise ValueError(
+            f"the loop's rate must divide the physics rate of {PHYSICS_RATE:g} Hz "
+            f"(1000, 500, 250, 200, 125, 100, ...), not {rate:g}"
+        )
+
+
 @dataclass(frozen=True)
 class SoakOptions:
     minutes: float = 10.0
@@ -106,6 +122,10 @@ class SoakOptions:
     warmup: float = WARMUP  # [s]; at most a third of a short run
     sample_period: float = SAMPLE_PERIOD
     thresholds: Thresholds = Thresholds()
+    rate: float = PHYSICS_RATE  # [Hz] the plant's joint states, and so the loop's rate
+
+    def __post_init__(self) -> None:
+        check_loop_rate(self.rate)
 
     @property
     def seconds(self) -> float:
@@ -263,7 +283,8 @@ def run(
     started_utc = datetime.now(UTC).isoformat(timespec="seconds")
     memory: dict[str, tuple[list[float], list[int]]] = {}
     log(
-        f"soak: {options.robot} {controller}, realtime 1 kHz, {options.minutes:g} min "
+        f"soak: {options.robot} {controller}, realtime {options.rate:g} Hz, "
+        f"{options.minutes:g} min "
         f"(warm-up {options.warmup_s:g} s), gains changed every {CHANGE_PERIOD:g} s"
     )
     with lease_domain() as lease, ProcessGroup(out / "logs", lease.domain_id) as group:
@@ -273,8 +294,8 @@ def run(
             {
                 "robot": options.robot,
                 "mode": "realtime",
-                "physics_rate": 1000.0,
-                "publish_rate": 1000.0,
+                "physics_rate": PHYSICS_RATE,
+                "publish_rate": options.rate,
                 "start_paused": True,
                 "command_timeout": 0.1,
             },
@@ -426,7 +447,7 @@ def _report(
         "controller": controller,
         "law": options.law,
         "sim_mode": "realtime",
-        "rate_hz": 1000.0,
+        "rate_hz": options.rate,
         "trigger": "state",
         "minutes_requested": options.minutes,
         "duration_s": duration,

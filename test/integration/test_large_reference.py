@@ -30,6 +30,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from joint_space_control.ros.diagnostics import statuses
 
 from .conftest import GAINS
+from .loop_rate import loop_rate
 from .test_faults import ROBOT, J, Rig, reference, rig  # noqa: F401  (the fixture)
 
 pytestmark = [pytest.mark.integration, pytest.mark.realtime]
@@ -74,13 +75,26 @@ def sine_reference(points: int, period: float = 1e-3) -> JointTrajectory:
     ],
 )
 def test_a_100000_point_reference_does_not_stall_the_realtime_loop(rig: Rig, trigger):  # noqa: F811
+    rate = loop_rate()  # beside the reference's build: 1 kHz, less on a slow machine
     rig.group.start(
         "sim_bridge",
-        {"robot": ROBOT, "mode": "realtime", "initial_positions": Q0, "command_timeout": 1.0},
+        {
+            "robot": ROBOT,
+            "mode": "realtime",
+            "initial_positions": Q0,
+            "command_timeout": 1.0,
+            "publish_rate": rate,
+        },
     )
     controller = rig.group.start(
         "pd_gravity_controller",
-        {"robot": ROBOT, **GAINS[ROBOT], "use_sim_time": True, "trigger": trigger},
+        {
+            "robot": ROBOT,
+            **GAINS[ROBOT],
+            "use_sim_time": True,
+            "trigger": trigger,
+            "rate": rate,
+        },
     )
     probe = rig.probe
     rig.diagnostics("sim_bridge", lambda s: not s["braking"])

@@ -12,6 +12,8 @@ import sys
 
 import pytest
 
+from .loop_rate import loop_rate
+
 pytestmark = pytest.mark.integration
 
 
@@ -85,6 +87,7 @@ def test_short_fault_soak_survives_every_fault_kind_once(tmp_path):
     cmd = [
         sys.executable, "-m", "joint_space_control.cli.main", "soak", "--faults",
         "--minutes", "3", "--period", "15", "--seed", "0", "--out", str(out),
+        "--rate", f"{loop_rate():g}",
     ]  # fmt: skip
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=540)
     if proc.returncode != 0:
@@ -92,7 +95,7 @@ def test_short_fault_soak_survives_every_fault_kind_once(tmp_path):
     assert proc.returncode == 0, proc.stdout[-8000:] + proc.stderr[-3000:]
     assert "verdict: PASS" in proc.stdout
     report = json.loads((out / "soak.json").read_text())
-    assert report["passed"] is True
+    assert report["passed"] is True and report["options"]["rate_hz"] == loop_rate()
     kinds = [f["kind"] for f in report["faults"]]
     from joint_space_control.experiments.fault_schedule import KINDS
 

@@ -280,6 +280,23 @@ def test_each_fault_outcome_of_a_synthetic_run():
     assert passed(fault_verdict(faults, result, timeline.bags, relaxed))
 
 
+def test_a_run_at_250_hz_is_judged_with_its_own_period():
+    """`jsc soak --faults --rate 250` (a machine too slow for 1 kHz): the same outcomes, the
+    states counted in 4 ms periods; judged with the 1 kHz period, every gap between two
+    states would count three lost."""
+    timeline, faults = synthetic_run(minutes=11, rate=250.0)
+    th = FaultThresholds(period_ns=4_000_000)
+    got = {o.kind: o for o in evaluate(faults, timeline, LIMITS, th).outcomes}
+    # 100 states never written before the kill, then 2 s down: 500 at 250 Hz
+    assert got["kill_recorder"].lost_at_kill == 100
+    assert (got["kill_recorder"].lost, got["kill_recorder"].lost_inside) == (600, 0)
+    assert (got["cpu_hogs"].lost, got["cpu_hogs"].lost_inside) == (3, 3)
+    exact = 0.5 * math.log(0.2 / th.tracking_bound)
+    assert exact <= got["kill_controller"].recovery_s < exact + 4e-3  # one sample
+    at_1_khz = evaluate(faults, timeline, LIMITS, FaultThresholds())
+    assert at_1_khz.lost_inside > 3 * (timeline.js_wall.size - 10_000)
+
+
 def test_failures_are_named_per_kind():
     timeline, faults = synthetic_run(minutes=11, rate=200.0, never_back=(6,))
     effort = timeline.effort.copy()
