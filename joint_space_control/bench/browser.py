@@ -115,6 +115,7 @@ def _close(proc: subprocess.Popen, timeout: float = 10.0) -> None:
 def _serve(url: str, timeout: float) -> None:
     import queue
 
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
     from playwright.sync_api import sync_playwright
 
     asked: queue.Queue[str | None] = queue.Queue()
@@ -145,8 +146,12 @@ def _serve(url: str, timeout: float) -> None:
                 if request is None:
                     break
                 if request == "plotting":
-                    page.get_by_text(PLOTTING_TEXT, exact=True).first.wait_for(timeout=ms)
-                    print(json.dumps({"plotting": True}), flush=True)
+                    try:
+                        page.get_by_text(PLOTTING_TEXT, exact=True).first.wait_for(timeout=ms)
+                    except PlaywrightTimeout as err:  # the page stays open: measured so
+                        print(json.dumps({"error": f"TimeoutError: {err}"}), flush=True)
+                    else:
+                        print(json.dumps({"plotting": True}), flush=True)
         finally:
             browser.close()
 

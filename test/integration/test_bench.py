@@ -153,6 +153,17 @@ def test_quick_dashboard_section_pairs_the_loop_without_and_with_the_page(tmp_pa
         ("realtime", False),
         ("realtime", True),
     ]
+    # with a page: plotting before the measurement, or why not (a realtime loop that left
+    # the browser no CPU on a slow machine: reported, and its page goal not met)
+    for r in runs:
+        assert (r["plotting"] is None) == (not (r["dashboard"] and page)), r
+        assert (r["plotting"] is False) == bool(r["not_plotting"]), r
+    starved = [kind for kind, _, _ in section["not_plotting"]]
+    assert "lockstep" not in starved  # lockstep waits for its controller: the page plots
+    if starved:
+        assert "NOT PLOTTING: realtime pair 1: the page at" in result.stdout
+        realtime_goal = [g for g in data["goals"] if "realtime on-time" in g["goal"]]
+        assert [g["met"] for g in realtime_goal] == [False]
     ls, rt = section["lockstep"], section["realtime"]
     assert (ls["robot"], ls["law"], ls["use_sim_time"]) == ("planar_2dof", "pd_gravity", True)
     assert ls["without_steps_per_s"] > 0 and ls["with_steps_per_s"] > 0

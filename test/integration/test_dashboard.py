@@ -33,6 +33,7 @@ from joint_space_control.ros.messages import REFERENCE_QOS, stamp_to_ns
 
 from .browser import chromium
 from .conftest import SETPOINTS
+from .loop_rate import loop_rate
 from .test_faults import ROBOT, Rig, rig  # noqa: F401  (the fixture)
 
 pytestmark = [pytest.mark.integration, pytest.mark.realtime, pytest.mark.browser]
@@ -324,9 +325,10 @@ def tune_and_move(rig: Rig, page, configs: list[str], shots: Path) -> None:  # n
 def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tmp_path):  # noqa: F811
     port = free_port()
     url = f"http://127.0.0.1:{port}"
+    rate = loop_rate()  # beside Chromium: 1 kHz, less on a slow machine
     rig.group.start(
         "sim_bridge",
-        {"robot": ROBOT, "mode": "realtime", "command_timeout": 2.0},
+        {"robot": ROBOT, "mode": "realtime", "command_timeout": 2.0, "publish_rate": rate},
     )
     rig.group.start(
         "pd_gravity_controller",
@@ -334,7 +336,14 @@ def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tm
         # and the controller's joint states then miss the default 0.1 s now and then (the
         # controller stops and restarts holding where it is, dropping the set-point sent);
         # measured by jsc bench --sections dashboard, not hidden: docs/dashboard.md
-        {"robot": ROBOT, "use_sim_time": True, "omega_n": 10.0, "zeta": 1.0, "state_timeout": 1.0},
+        {
+            "robot": ROBOT,
+            "use_sim_time": True,
+            "omega_n": 10.0,
+            "zeta": 1.0,
+            "state_timeout": 1.0,
+            "rate": rate,
+        },
     )
     rig.group.start("dashboard", {"port": port})
     configs: list[dict] = []
