@@ -1,9 +1,8 @@
 """A soak run: the realtime loop at 1 kHz for minutes, gains changed every second.
 
 ``sim_bridge`` (realtime, 1 kHz physics; joint states at 1 kHz, or at ``--rate`` on a machine
-too slow for that) and one controller answering every
-joint state run as separate processes in a leased ROS domain with localhost discovery. An
-observer node in this process
+too slow for that) and one controller answering every joint state run as separate processes
+in a leased ROS domain with localhost discovery. An observer node in this process
 
 - sends smooth moves between two configurations inside the joint limits (a one-point
   trajectory reached after :data:`MOVE_TIME` seconds, a new one every :data:`MOVE_PERIOD`),
