@@ -348,6 +348,10 @@ def test_killed_controller_brakes_the_plant_and_a_new_one_takes_over_bumplessly(
     assert_all_commands_safe(rig.commands)
 
 
+# realtime (run alone, after the parallel part): beside the other worker's tests on a VM that
+# ran Python 3x slower, its lockstep loop did not reach t = 2.4 s in 60 s (make test,
+# 2026-12-04, twice; it passed alone both times, in 17 s)
+@pytest.mark.realtime
 def test_restarted_simulator_is_detected_and_the_controller_resumes_cleanly(make_loop):
     """Lockstep: SIGKILL sim_bridge mid-run and start a new one. Its time starts again at 0:
     the controller notices, forgets reference and integrators, holds the measured (initial)
