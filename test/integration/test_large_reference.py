@@ -146,13 +146,26 @@ def test_a_large_reference_does_not_replace_a_newer_one_taken_while_it_was_built
     the step sent 0.3 s after it. In the fault soak it did, seconds later, and sent q_d back
     2.7 rad to where the arm had been (the controller clamped 5e6 N·m). On the old code
     the arm went back to Q0 and no ``superseded.references`` was counted."""
+    rate = loop_rate()  # beside the reference's build: 1 kHz, less on a slow machine
     rig.group.start(
         "sim_bridge",
-        {"robot": ROBOT, "mode": "realtime", "initial_positions": Q0, "command_timeout": 1.0},
+        {
+            "robot": ROBOT,
+            "mode": "realtime",
+            "initial_positions": Q0,
+            "command_timeout": 1.0,
+            "publish_rate": rate,
+        },
     )
     controller = rig.group.start(
         "pd_gravity_controller",
-        {"robot": ROBOT, **GAINS[ROBOT], "use_sim_time": True, "trigger": "state"},
+        {
+            "robot": ROBOT,
+            **GAINS[ROBOT],
+            "use_sim_time": True,
+            "trigger": "state",
+            "rate": rate,
+        },
     )
     probe = rig.probe
     rig.diagnostics("sim_bridge", lambda s: not s["braking"])
