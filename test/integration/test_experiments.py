@@ -91,7 +91,10 @@ def test_two_robots_in_one_world_are_each_analysed_and_checked(tmp_path):
         assert final[robot]["passed"] is True and largest < 1e-3
         for topic in ("joint_states", "effort_command", "reference"):
             assert metrics["message_counts"][f"/{robot}/{topic}"] >= 1
-        assert metrics["message_counts"][f"/{robot}/joint_states"] == 4001  # 0 … 4 s at 1 kHz
+        # 0 … 4 s at 1 kHz, each state answered; a state left unanswered 0.5 s of wall time
+        # is sent again (republish_period), so the bag may hold a state twice
+        assert controller["samples"]["analysed"] == 4001
+        assert metrics["message_counts"][f"/{robot}/joint_states"] >= 4001
     second = [c for c in verdict["checks"] if c["check"] == "second_order"]
     assert [c["numbers"]["joint"] for c in second] == ["joint1", "joint2"]
     assert all(c["passed"] and c["text"].startswith("arm ") for c in second)
