@@ -156,11 +156,11 @@ class FaultThresholds:
     #: Stamp period of the plant's states [ns].
     period_ns: int = PERIOD_NS
     #: Largest RSS growth of a process [MB/h], judged twice: each incarnation after its
-    #: warm-up between steps (Theil–Sen over pairs of samples with no step of
-    #: ``soak_metrics.STEP_MB`` between them: steady growth; a high-water mark at a fault is
-    #: reported as a step, not judged as growth), and each process over the whole run, its
-    #: incarnations' samples after their warm-ups together (Theil–Sen: steps that recur at
-    #: every fault or restart show there as growth).
+    #: warm-up between steps (Theil–Sen over pairs of samples with no step, a rise of
+    #: ``soak_metrics.STEP_MB`` within ``STEP_WINDOW_S``, between them: steady growth; a
+    #: high-water mark at a fault is reported as a step, not judged as growth), and each
+    #: process over the whole run, its incarnations' samples after their warm-ups together
+    #: (Theil–Sen: steps that recur at every fault or restart show there as growth).
     max_slope_mb_per_hour: float = 30.0
     #: An incarnation's slope is judged only over at least this long after its warm-up [min].
     min_span_min: float = 5.0

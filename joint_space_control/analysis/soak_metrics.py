@@ -157,25 +157,70 @@ def median_slope_per_minute(
     return _theil_sen_per_minute(t, y, points=points)
 
 
-def plateaus(values: Sequence[float], step: float) -> np.ndarray:
-    """A label per sample: it changes after every rise of at least ``step`` between two
-    consecutive samples (a step), so each label is a plateau between steps."""
+def step_rises(
+    times_s: Sequence[float], values: Sequence[float], step: float, window_s: float
+) -> np.ndarray:
+    """Per interval between consecutive samples (one fewer than the samples), whether it is
+    part of a step: a rise of at least ``step`` from a sample to a later one at most
+    ``window_s`` [s] after it (the highest in that window) marks the intervals between the
+    two that rise. A high-water mark taken at once or over seconds is a step; growth slower
+    than ``step`` per ``window_s`` is not."""
+    t = np.asarray(times_s, dtype=float)
+    y = np.asarray(values, dtype=float)
+    rising = np.diff(y) > 0.0
+    marked = np.zeros_like(rising)
+    ends = np.searchsorted(t, t + window_s, side="right")
+    for i in range(y.size - 1):
+        window = y[i + 1 : ends[i]]
+        if window.size and window.max() - y[i] >= step:
+            top = i + 1 + int(np.argmax(window))
+            marked[i:top] |= rising[i:top]
+    return marked
+
+
+def plateaus(
+    times_s: Sequence[float], values: Sequence[float], step: float, window_s: float
+) -> np.ndarray:
+    """A label per sample: it changes at every interval that is part of a step
+    (:func:`step_rises`), so each label is a plateau between steps and the samples a step
+    passes through stand alone."""
     y = np.asarray(values, dtype=float)
     if y.size == 0:
         return np.zeros(0, dtype=int)
-    return np.concatenate([[0], np.cumsum(np.diff(y) >= step)]).astype(int)
+    return np.concatenate([[0], np.cumsum(step_rises(times_s, y, step, window_s))]).astype(int)
 
 
 def steady_slope_per_minute(
-    times_s: Sequence[float], values: Sequence[float], step: float, points: int = 600
+    times_s: Sequence[float],
+    values: Sequence[float],
+    step: float,
+    window_s: float,
+    points: int = 600,
 ) -> float:
-    r"""Theil–Sen slope [per minute] between steps: over the pairs of samples with no rise
-    of ``step`` or more between them (:func:`plateaus`). A process's steady growth, however
+    r"""Theil–Sen slope [per minute] between steps: over the pairs of samples with no step
+    (:func:`step_rises`) between them (:func:`plateaus`). A process's steady growth, however
     many one-off steps its faults cause (each step is reported on its own); NaN when no
     plateau holds two samples at distinct times."""
     t = np.asarray(times_s, dtype=float)
     y = np.asarray(values, dtype=float)
-    return _theil_sen_per_minute(t, y, plateaus(y, step), points)
+    return _theil_sen_per_minute(t, y, plateaus(t, y, step, window_s), points)
+
+
+def steps_of(
+    times_s: Sequence[float], values: Sequence[float], step: float, window_s: float
+) -> list[tuple[float, float]]:
+    """Each step as (time [s] of its first sample, its rise to its last): the intervals of
+    :func:`step_rises`, those less than ``window_s`` apart taken as one step (a rise that
+    pauses for a sample is one high-water mark)."""
+    t = np.asarray(times_s, dtype=float)
+    y = np.asarray(values, dtype=float)
+    steps: list[list[int]] = []  # [first interval, last interval]
+    for k in np.flatnonzero(step_rises(t, y, step, window_s)):
+        if steps and t[k] - t[steps[-1][1] + 1] < window_s:
+            steps[-1][1] = int(k)
+        else:
+            steps.append([int(k), int(k)])
+    return [(float(t[a]), float(y[b + 1] - y[a])) for a, b in steps]
 
 
 def largest_step(times_s: Sequence[float], values: Sequence[float]) -> tuple[float, float]:
@@ -189,26 +234,36 @@ def largest_step(times_s: Sequence[float], values: Sequence[float]) -> tuple[flo
     return float(max(rise[k], 0.0)), float(np.asarray(times_s, dtype=float)[k + 1])
 
 
-#: A rise of at least this much [MB] between two memory samples is a step (the soaks sample
-#: every 2 s: a steady 30 MB/h is 0.017 MB a sample, a megabyte message's buffer 1-10 MB).
+#: A rise of at least STEP_MB [MB] within STEP_WINDOW_S [s] is a step: a high-water mark
+#: taken at a fault, at once (a megabyte message's buffers: 1-10 MB between two samples 2 s
+#: apart) or over seconds (a writer keeping samples for a killed reader until its lease ends:
+#: 5.5 MB over 18 s at 250 Hz). A steady 30 MB/h is 0.25 MB in STEP_WINDOW_S, far below a
+#: step; growth at 240 MB/h and more is all steps, and fails over the run
+#: (``fault_metrics.run_growth``) instead.
 STEP_MB = 2.0
+STEP_WINDOW_S = 30.0
 
 
 def memory_summary(
-    times_s: Sequence[float], rss_bytes: Sequence[float], warmup_s: float, step_mb: float = STEP_MB
+    times_s: Sequence[float],
+    rss_bytes: Sequence[float],
+    warmup_s: float,
+    step_mb: float = STEP_MB,
+    window_s: float = STEP_WINDOW_S,
 ) -> dict[str, Any]:
     """RSS figures of one process [MB]: at the first sample after the warm-up (``start``),
     at the last (``end``), the largest over the whole run (``max``), the growth slope after
     the warm-up [MB/min] (least squares, Theil–Sen: ``median_slope_mb_per_min``, and
-    Theil–Sen between steps of ``step_mb`` or more: ``steady_slope_mb_per_min``), its steps
-    (``steps``, their sum ``steps_mb``), its largest rise between two samples
-    (``largest_step_mb``, at ``largest_step_s``) and the time span the slopes cover [min]."""
+    Theil–Sen between steps of ``step_mb`` or more within ``window_s``:
+    ``steady_slope_mb_per_min``), its steps (``steps``, their sum ``steps_mb``), its
+    largest rise between two samples (``largest_step_mb``, at ``largest_step_s``) and the
+    time span the slopes cover [min]."""
     t = np.asarray(times_s, dtype=float)
     y = np.asarray(rss_bytes, dtype=float) / MB
     after = t >= warmup_s
     ta, ya = t[after], y[after]
     largest_mb, largest_s = largest_step(ta, ya)
-    rises = np.diff(ya)
+    steps = steps_of(ta, ya, step_mb, window_s)
     nan = math.nan
     return {
         "samples": int(t.size),
@@ -220,9 +275,9 @@ def memory_summary(
         "growth_mb": float(ya[-1] - ya[0]) if ya.size else nan,
         "slope_mb_per_min": slope_per_minute(ta, ya),
         "median_slope_mb_per_min": median_slope_per_minute(ta, ya),
-        "steady_slope_mb_per_min": steady_slope_per_minute(ta, ya, step_mb),
-        "steps": int(np.sum(rises >= step_mb)),
-        "steps_mb": float(np.sum(rises[rises >= step_mb])),
+        "steady_slope_mb_per_min": steady_slope_per_minute(ta, ya, step_mb, window_s),
+        "steps": len(steps),
+        "steps_mb": float(sum(rise for _, rise in steps)),
         "largest_step_mb": largest_mb,
         "largest_step_s": largest_s,
         "span_min": float(ta[-1] - ta[0]) / 60.0 if ta.size else 0.0,

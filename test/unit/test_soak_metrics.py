@@ -11,6 +11,7 @@ import pytest
 from joint_space_control.analysis.soak_metrics import (
     MB,
     STEP_MB,
+    STEP_WINDOW_S,
     CommandAudit,
     Thresholds,
     UpdateTally,
@@ -228,21 +229,49 @@ def test_the_median_slope_ignores_one_step_but_not_steady_or_recurring_growth():
 
 def test_the_slope_between_steps():
     """Steps of at least STEP_MB split the series into plateaus; the slope is taken within
-    them: steady growth under three steps gives its rate, three steps alone 0; a rise of
-    0.25 MB every sample (allocations below a step's size) is growth, not steps."""
+    them: steady growth under three steps gives its rate, three steps alone 0."""
     t = np.arange(0.0, 1800.0, 2.0)
+    w = STEP_WINDOW_S
     stairs = 24.0 * np.searchsorted([300.0, 900.0, 1500.0], t, side="right")
-    assert list(np.unique(plateaus(stairs, STEP_MB))) == [0, 1, 2, 3]
-    assert steady_slope_per_minute(t, 200.0 + stairs, STEP_MB) == 0.0
+    assert list(np.unique(plateaus(t, stairs, STEP_MB, w))) == [0, 1, 2, 3]
+    assert steady_slope_per_minute(t, 200.0 + stairs, STEP_MB, w) == 0.0
     rising = 200.0 + stairs + 20.0 * t / 3600.0
-    assert steady_slope_per_minute(t, rising, STEP_MB) * 60.0 == pytest.approx(20.0, rel=1e-9)
-    blocks = 200.0 + 0.25 * np.arange(t.size)
-    assert plateaus(blocks, STEP_MB).max() == 0
-    assert steady_slope_per_minute(t, blocks, STEP_MB) * 60.0 == pytest.approx(450.0, rel=1e-9)
-    assert math.isnan(steady_slope_per_minute([0.0, 2.0], [0.0, 10.0], STEP_MB))  # no pair
+    assert steady_slope_per_minute(t, rising, STEP_MB, w) * 60.0 == pytest.approx(20.0, rel=1e-9)
+    assert math.isnan(steady_slope_per_minute([0.0, 2.0], [0.0, 10.0], STEP_MB, w))  # no pair
     summary = memory_summary(t, rising * MB, warmup_s=0.0)
-    assert summary["steps"] == 3 and summary["steps_mb"] == pytest.approx(72.0, abs=0.1)
+    # each step's rise holds the steady growth of a window before it and after (20 MB/h)
+    assert summary["steps"] == 3
+    assert 72.0 < summary["steps_mb"] < 72.0 + 3 * 20.0 * (2 * w + 2.0) / 3600.0
     assert summary["steady_slope_mb_per_min"] * 60.0 == pytest.approx(20.0, rel=1e-9)
+
+
+def test_a_step_taken_over_seconds_is_a_step_and_slow_growth_is_not():
+    """A high-water mark taken over seconds in rises below STEP_MB each (seen: sim_bridge
+    +5.5 MB over 18 s, 0.3-0.7 MB a sample, after a recorder was killed, in a 250 Hz soak)
+    is one step, not growth; growth slower than STEP_MB per STEP_WINDOW_S is growth,
+    however it comes (0.5 MB every 20 s, 90 MB/h); growth so fast that every window holds a
+    step is all steps here (and judged over the run: fault_metrics.run_growth)."""
+    t = np.arange(0.0, 720.0, 2.0)
+    ramp = 138.0 + np.interp(t, [424.0, 442.0], [0.0, 5.5])
+    summary = memory_summary(t, ramp * MB, warmup_s=60.0)
+    assert summary["steps"] == 1 and summary["steps_mb"] == pytest.approx(5.5, abs=1e-9)
+    assert summary["largest_step_mb"] < STEP_MB  # no single interval is a step
+    assert summary["steady_slope_mb_per_min"] == 0.0
+    # judged per interval, as before: the ramp read as +34 MB/h
+    assert median_slope_per_minute(t[t >= 60.0], ramp[t >= 60.0]) * 60.0 > 30.0
+    # growth in pieces below a step: 0.5 MB every 20 s, at most 1 MB a window
+    pieces = 200.0 + 0.5 * np.floor(t / 20.0)
+    assert plateaus(t, pieces, STEP_MB, STEP_WINDOW_S).max() == 0
+    slope = steady_slope_per_minute(t, pieces, STEP_MB, STEP_WINDOW_S) * 60.0
+    assert slope == pytest.approx(90.0, rel=0.05)
+    # the limit's growth, 30 MB/h in 4 kB pages, is growth: 0.25 MB a window
+    pages = 200.0 + np.floor(30.0 * t / 3600.0 / 0.004096) * 0.004096
+    assert memory_summary(t, pages * MB, warmup_s=0.0)["steps"] == 0
+    assert steady_slope_per_minute(t, pages, STEP_MB, STEP_WINDOW_S) * 60.0 > 29.0
+    # 450 MB/h (0.25 MB a sample): every window holds a step
+    fast = 200.0 + 0.25 * np.arange(t.size)
+    assert plateaus(t, fast, STEP_MB, STEP_WINDOW_S).max() == t.size - 1
+    assert math.isnan(steady_slope_per_minute(t, fast, STEP_MB, STEP_WINDOW_S))
 
 
 def test_cpu_seconds_are_user_plus_system_after_a_command_name_with_spaces_and_parentheses():
