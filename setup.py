@@ -67,6 +67,8 @@ TEST_REQUIRES = [
     # Two workers: the lockstep integration tests wait on inter-process messages more
     # than they compute, so two at a time nearly halve the suite's wall time.
     "pytest-xdist>=3.5,<4",
+    # One rerun of the page test on a browser timeout only (test_dashboard.py: a slow VM)
+    "pytest-rerunfailures>=14,<17",
     "hypothesis>=6.100,<7",
     # Pinned to one minor series: `ruff format --check` output changes between minors.
     "ruff>=0.17,<0.18",

@@ -52,6 +52,9 @@ DRAWN_TIMEOUT = 60.0
 #: drawing WebGL in software takes most of a core, and at niceness 0 it came before the
 #: dashboard (niceness 10), whose robot panel a CI run's page then waited for in vain.
 BROWSER_NICE = 19
+#: Playwright's timeout, as pytest-rerunfailures sees it ("TimeoutError: Locator.click:
+#: Timeout 120000ms exceeded."): the one failure the page test is run again for.
+PLAYWRIGHT_TIMEOUT = r"^TimeoutError: \w+\.\w+: Timeout \d+ms exceeded"
 
 
 def what_the_loop_says(rig: Rig, page, references: list, configs: list[str]) -> str:  # noqa: F811
@@ -322,6 +325,11 @@ def tune_and_move(rig: Rig, page, configs: list[str], shots: Path) -> None:  # n
 
 @pytest.mark.long  # two and a half minutes of a realtime loop beside the page: make test-long
 @pytest.mark.timeout(900)  # its page waits are long on a slow machine (PAGE_LOAD_TIMEOUT_MS)
+# Run again once if, and only if, the browser timed out: on a VM that ran sum(range(1000)) in
+# 36 µs, Chromium at nice 19 starved beside the loop once (a tab's click waited 120 s) after
+# the other long tests, and the test passed alone in 294 s. Any other failure fails at once,
+# and two timeouts fail (docs/testing.md).
+@pytest.mark.flaky(reruns=1, only_rerun=[PLAYWRIGHT_TIMEOUT])
 def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tmp_path):  # noqa: F811
     port = free_port()
     url = f"http://127.0.0.1:{port}"
