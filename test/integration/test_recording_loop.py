@@ -15,6 +15,7 @@ from mcap_ros2.reader import read_ros2_messages
 from rosbags.highlevel import AnyReader
 
 from joint_space_control.recording.bag_writer import jazzy_typestore
+from joint_space_control.ros.messages import stamp_to_ns
 
 from .conftest import JOINTS, SETPOINTS
 
@@ -162,8 +163,7 @@ def test_recorder_flush_answers_what_the_bag_holds(make_loop, tmp_path):
     # sent again (republish_period), so the counts may hold one twice (at the probe, the
     # recorder, or both)
     assert len(seen) == 801
-    stamp_ns = lambda m: m.header.stamp.sec * 10**9 + m.header.stamp.nanosec  # noqa: E731
-    assert {stamp_ns(m) for _, m in topics["/joint_states"]} == seen
+    assert {stamp_to_ns(m.header.stamp) for _, m in topics["/joint_states"]} == seen
     assert counts["/joint_states"] >= len(seen)
     for name in ["/joint_states", "/effort_command", "/clock", STATE_TOPIC]:
         assert in_bag[name] == counts[name], name
