@@ -241,7 +241,7 @@ def stopped_time(rig: Rig, timeout: float = 30.0) -> float:  # noqa: F811
     raise AssertionError(f"simulated time still advancing after {timeout:g} s: {last:.3f} s")
 
 
-def tune_and_move(rig: Rig, page, configs: list[str], shots: Path) -> None:  # noqa: F811
+def tune_and_move(rig: Rig, page, configs: list[str], shots: Path, rate: float) -> None:  # noqa: F811
     """The page test's steps, once the page is open: the robot drawn and the plots moving,
     omega_n set from the page changing K_P, a refused value, a set-point reached, pause and
     resume."""
@@ -308,15 +308,16 @@ def tune_and_move(rig: Rig, page, configs: list[str], shots: Path) -> None:  # n
     # diagnostics' 4 decimals of sim_time_s, and a state or a few that may not have
     # gone out: a loaded machine queues them, and a probe starved of CPU beside the
     # browser was once 8.5 s of states behind), then none later comes for 1.5 s
+    lag = max(0.0105, 2.5 / rate + 0.0005)  # 2.5 periods of the plant's states, 10 ms at least
     rig.probe.spin_until(
-        lambda: rig.probe.latest_time() >= paused_at - 0.0105,
+        lambda: rig.probe.latest_time() >= paused_at - lag,
         60.0,
         f"the probe to take the states up to the pause at {paused_at:.4f} s",
         rig.group.check_alive,
     )
     rig.probe.spin_for(1.5)
     last = rig.probe.latest_time()
-    assert paused_at - 0.0105 <= last <= paused_at + 1e-9, (last, paused_at)
+    assert paused_at - lag <= last <= paused_at + 1e-9, (last, paused_at)
     page.get_by_role("button", name="resume").click()
     rig.probe.spin_until(
         lambda: rig.probe.latest_time() > paused_at + 0.5, 10.0, "time running again"
@@ -372,7 +373,7 @@ def test_the_page_shows_and_tunes_the_loop_and_the_loop_survives_it(rig: Rig, tm
     with rig.probe.spinning_in_background(), chromium(nice=BROWSER_NICE) as browser:
         page, outside = open_page(browser, url)
         try:
-            tune_and_move(rig, page, configs, shots)
+            tune_and_move(rig, page, configs, shots, rate)
         except TimeoutError as err:
             report = what_the_loop_says(rig, page, references, configs)
             raise AssertionError(f"{err}\n{report}") from None
