@@ -27,6 +27,9 @@ from joint_space_control.machine import python_speed_us
 RATES = ((15.0, 1000.0), (20.0, 250.0))
 #: The rate on a machine slower than every entry of :data:`RATES` [Hz].
 SLOWEST_RATE = 100.0
+#: The least rate of a test that runs the plant alone, without a controller or a browser
+#: [Hz]: it kept up at 250 Hz on the slowest machine seen (test_probe_catches_up.py).
+PLANT_ALONE_RATE = 250.0
 
 
 def rate_for(speed_us: float) -> float:
