@@ -73,6 +73,9 @@ from joint_space_control.throttle import ThrottledLog
 
 #: Messages a subscription queues while the recorder is busy writing.
 QUEUE_DEPTH = 10000
+#: Wall time [s] between returns of the allocator's free pages to the system (see
+#: :meth:`Recorder._give_back`).
+GIVE_BACK_PERIOD = 10.0
 #: After a stop signal, the bag is closed once a wait of this long [s] brings no message
 #: received before the signal.
 DRAIN_IDLE = 0.05
@@ -193,6 +196,7 @@ class Recorder(Node):
             self.create_timer(period, self._discover, clock=self._wall)
             if flush_period > 0:  # an idle recorder still flushes what it holds
                 self.create_timer(flush_period, self._flush, clock=self._wall)
+            self.create_timer(GIVE_BACK_PERIOD, self._give_back, clock=self._wall)
             self.create_service(Trigger, "~/flush", self._on_flush)
             self.create_service(Trigger, "~/matched", self._on_matched)
         except BaseException:
@@ -207,6 +211,17 @@ class Recorder(Node):
             self.bag.flush()
         except BagWriteError as err:
             self.write_failed(err)
+
+    def _give_back(self) -> None:
+        """The allocator's free pages back to the system, every ``GIVE_BACK_PERIOD``.
+
+        A recorder frees most of what it allocates within a flush period (messages, the
+        chunk being written), but blocks it keeps (the MCAP summary's chunk index, the
+        middleware's bookkeeping) can land between them, and glibc returns only the top of
+        its heap on free: the freed pages below stay resident. One call returned 1.0 MB of
+        a recorder's 53 MB after 6 minutes at 250 Hz. It took 0.1-5 ms a call there, in
+        the executor's thread, not the one that takes the messages."""
+        give_back_free_memory()
 
     def _on_flush(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """``~/flush``: what is held goes to the file; the answer counts what was recorded."""
