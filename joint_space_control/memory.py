@@ -15,7 +15,8 @@ criterion, docs/safety.md):
   leaves small freed blocks spread over many pages. :func:`give_back_free_memory`
   (``malloc_trim``) returns every whole free page: measured on six such references built in
   a process doing nothing else, 286 MB → 233 MB. It walks the heaps (a few milliseconds),
-  so it is called after a large message only, never per tick.
+  so it is called after a large message, never per tick (and by the recorder every
+  10 s, from its executor's thread: ``Recorder._give_back``).
 
 Both are glibc's; on another C library they do nothing and say so (False).
 """
