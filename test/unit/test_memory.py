@@ -37,17 +37,18 @@ print(rss() - before)
 """
 
 
-def left_behind(mode: str) -> float:
+def resident_left(script: str, mode: str) -> float:
+    """What ``script`` prints [MB], run in a fresh process with ``mode`` as its argument."""
     out = subprocess.run(
-        [sys.executable, "-c", LEFT_BEHIND, mode], capture_output=True, text=True, check=True
+        [sys.executable, "-c", script, mode], capture_output=True, text=True, check=True
     )
     return float(out.stdout)
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's allocator, /proc")
 def test_large_blocks_go_back_to_the_system_once_the_threshold_is_set():
-    kept_by_default = left_behind("default")
-    kept_when_set = left_behind("set")
+    kept_by_default = resident_left(LEFT_BEHIND, "default")
+    kept_when_set = resident_left(LEFT_BEHIND, "set")
     # glibc's raised threshold keeps the 45 MB in the heap; set, they go back
     assert kept_by_default > 30.0, kept_by_default
     assert kept_when_set < 5.0, kept_when_set
@@ -81,20 +82,13 @@ print(rss() - (before - 20.0))
 """
 
 
-def holes_left(mode: str) -> float:
-    out = subprocess.run(
-        [sys.executable, "-c", HOLES, mode], capture_output=True, text=True, check=True
-    )
-    return float(out.stdout)
-
-
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's allocator, /proc")
 def test_freed_blocks_between_kept_ones_stay_resident_until_given_back():
     """What the recorder's periodic give-back is for: free() returns only the top of the
     heap to the system, so 20 MB freed between blocks still in use stay resident (a
     process's memory creeps up as such holes appear); give_back_free_memory returns them."""
-    kept_after_free = holes_left("free")
-    kept_after_trim = holes_left("trim")
+    kept_after_free = resident_left(HOLES, "free")
+    kept_after_trim = resident_left(HOLES, "trim")
     assert kept_after_free > 15.0, kept_after_free
     assert kept_after_trim < 5.0, kept_after_trim
 
