@@ -50,6 +50,45 @@ class Step(NamedTuple):
     dq: np.ndarray | None = None
 
 
+#: What a controller's state record holds per computed step (its node's ``~/state``), each
+#: field per joint, in this order: the reference sample, the state the law used, the error
+#: and its derivative, the torque split, the torque before and after clamping.
+STATE_FIELDS = (
+    "q_d",
+    "dq_d",
+    "ddq_d",
+    "q",
+    "dq",
+    "error",
+    "derror",
+    "tau_feedback",
+    "tau_model",
+    "tau_gravity",
+    "tau_unclamped",
+    "tau",
+)
+
+
+def state_row(step: Step, out: np.ndarray | None = None) -> np.ndarray:
+    """The step's :data:`STATE_FIELDS`, one after the other (into ``out`` when given)."""
+    ref, split, q, dq = step.ref, step.split, step.q, step.dq
+    fields = (
+        ref.q,
+        ref.dq,
+        ref.ddq,
+        q,
+        dq,
+        ref.q - q,
+        ref.dq - dq,
+        split.feedback,
+        split.model,
+        split.gravity,
+        step.unclamped,
+        step.tau,
+    )
+    return np.concatenate(fields, out=out)
+
+
 class Controller:
     """Base of the controllers: a configuration (immutable, swapped whole) with at least
     ``gains`` (None while they wait to be designed) and ``choice`` (the gain parameters,

@@ -81,11 +81,9 @@ from joint_space_control.control.configure import (  # noqa: F401  (re-exported)
     MODEL_PARAMETERS,
     TRIGGERS,
     ControllerKind,
-    config_document,
     model_perturbation,
-    sampling,
 )
-from joint_space_control.control.controller import Step
+from joint_space_control.control.policy import ControlPolicy, Kind, Taken
 from joint_space_control.control.sampling import VelocitySource
 from joint_space_control.laws.gains import GainChoice
 from joint_space_control.laws.limits import beyond_bound, joints_beyond
@@ -168,36 +166,38 @@ class JointController(Node):
         """The configuration in force (the core's, swapped whole on a parameter update)."""
         return self.core.config
 
+    @property
+    def core(self) -> Any:
+        """The controller the policy steps (its configuration, state and step)."""
+        return self.policy.core
+
+    @property
+    def model(self) -> RobotModel:
+        """The controller's model in force."""
+        return self.policy.model
+
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self._specs = self.KIND.parameters
         params.declare(self, self._specs)
         values = params.current_values(self, self._specs)
-        self.model = params.robot_model(values, model_perturbation(values), self)
-        spec = self.model.spec
-        self.joints = self.model.joint_names
+        model = params.robot_model(values, model_perturbation(values), self)
+        spec = model.spec
+        self.joints = model.joint_names
         self.n = len(self.joints)
-        self.effort_limits = self.model.effort_limits
-        self._plausible = PlausibleStates(*self.model.position_limits, self.joints)
+        self.effort_limits = model.effort_limits
+        self._plausible = PlausibleStates(*model.position_limits, self.joints)
         self._robot_name = spec.name
         self._rate = rate = params.value(values, "rate")
         self.trigger_parameter = params.value(values, "trigger")
         # the trigger in force: "timer" | "state" | "pending" (auto, plant mode not known)
         self.trigger = "pending" if self.trigger_parameter == "auto" else self.trigger_parameter
         self._trigger_reason = ""
-        # the controller itself (no ROS): configuration, state, step
-        self.core = self.KIND.core(
-            self.build_config(values, self.model),
-            self.effort_limits,
-            sampling(values, self.trigger, rate),
-        )
+        # the controller and what the node does with it (no ROS): the policy
+        self.policy = ControlPolicy(self.KIND, values, model, self.trigger)
         self._velocity_said: VelocitySource | None = None  # the source last logged
-        self._last_step: Step | None = None  # the step of the control period in force
         self._period_warned = False
         self._gravity_checked = False  # g(q) against the effort limits, at the first state
-        self._values = values  # the parameter values in force
-        self._state_timeout = params.value(values, "state_timeout")
-        self._reject_factor = params.value(values, "reject_factor")
         self._lock = threading.Lock()  # parameter updates wait for the end of a tick
         # what may recur at every tick or message: one line a second per kind (throttle.py)
         self._log = ThrottledLog(self.get_logger())
@@ -227,13 +227,10 @@ class JointController(Node):
         self._reference_thread = ThreadPoolExecutor(1, thread_name_prefix="references")
         self._reference_builder = ReferenceBuilder()
         prepare_reference_reader()
-        # references are numbered as they arrive: they take effect in that order (a large
-        # one built off the control path must not replace a small one that arrived after it
-        # and was taken at once), and a restart forgets those that arrived before it
-        self._arrivals = 0
-        self._taken = 0  # the newest taken
-        self._forgotten = 0  # the newest when the controller last restarted
-        self._answered_ns = -1
+        # references are numbered as they arrive (policy.arrive): they take effect in that
+        # order (a large one built off the control path must not replace a small one that
+        # arrived after it and was taken at once), and a restart forgets those that arrived
+        # before it
         # header.frame_id names the commander: the plant accepts one at a time (docs/safety.md)
         self._command = JointStateImage(
             self.joints, (0, 0, self.n), frame_id=self.get_fully_qualified_name()
@@ -261,7 +258,7 @@ class JointController(Node):
             Float64MultiArray, "~/state", CONTROL_PUBLISHER_QOS
         )
         self._config_pub = self.create_publisher(String, "~/config", CONFIG_QOS)
-        self._publish_config(values)
+        self._publish_config()
         self.control_path = ControlPath(self)
         self.realtime = RealtimeThreads(self, values)
         self.control_path.on_serve = lambda: self.realtime.configure("control path")
@@ -319,17 +316,6 @@ class JointController(Node):
             return text + ", designed at the first measured configuration"
         return text + f": kp={gains.kp.tolist()}, kd={gains.kd.tolist()}"
 
-    # -- the concrete controller's -----------------------------------------------------
-    def build_config(self, values: dict[str, Any], model: RobotModel) -> Any:
-        """The immutable configuration (``gains`` and the controller ``model``) from
-        parameter values (:func:`~joint_space_control.control.configure.ControllerKind.
-        config_from`; ValueError with the reason)."""
-        return self.KIND.config_from(values, model)
-
-    def law_name(self, config: Any) -> str:
-        """The law in force, as named in ``~/config`` (README)."""
-        return self.KIND.law_name(config)
-
     # -- parameters --------------------------------------------------------------------
     def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
         """rclpy's, with every refusal counted and logged (:meth:`_refused`)."""
@@ -352,19 +338,12 @@ class JointController(Node):
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         values = params.with_changes(self, self._specs, changes)
         try:
-            model, config, new_sampling = self.KIND.reconfigure(values, self.model, self.trigger)
-            timeout = params.value(values, "state_timeout")
-            reject_factor = params.value(values, "reject_factor")
-            with self._lock:  # between two ticks
-                self.core.set_config(config)  # swapped whole; a tick reads it once
-                self.core.set_sampling(new_sampling)
-                self.model = model
-                self._state_timeout = timeout
-                self._reject_factor = reject_factor
-                self._values = values
+            apply = self.policy.prepare(values)
         except ValueError as err:  # counted and logged by _refused
             return SetParametersResult(successful=False, reason=str(err))
-        self._publish_config(values)
+        with self._lock:  # between two ticks
+            apply()
+        self._publish_config()
         self.get_logger().info(
             "parameters updated: " + ", ".join(f"{p.name}={p.value}" for p in changes)
         )
@@ -391,7 +370,7 @@ class JointController(Node):
     def _alarm(self) -> str | None:
         """Why the controller is not doing its job right now (an ERROR on /diagnostics)."""
         if self._silent:
-            return f"no joint state for more than {self._state_timeout} s: not commanding"
+            return f"no joint state for more than {self.policy.state_timeout} s: not commanding"
         if self._clock_jumps.repeating:
             return "/clock goes backwards and forwards (two simulators in this domain?)"
         if self._state_jumps.repeating:
@@ -399,21 +378,11 @@ class JointController(Node):
             return f"joint state time goes backwards and forwards (two publishers of {topic}?)"
         return None
 
-    def _publish_config(self, values: dict[str, Any]) -> None:
-        self._config_pub.publish(
-            config_message(
-                config_document(
-                    self.KIND,
-                    self.core,
-                    self.model,
-                    values,
-                    node=self.get_fully_qualified_name(),
-                    rate=self._rate,
-                    trigger=self.trigger,
-                    trigger_parameter=self.trigger_parameter,
-                )
-            )
+    def _publish_config(self) -> None:
+        document = self.policy.config_document(
+            self.get_fully_qualified_name(), self.trigger_parameter
         )
+        self._config_pub.publish(config_message(document))
 
     # -- inputs ------------------------------------------------------------------------
     def _now(self) -> float:
@@ -440,8 +409,7 @@ class JointController(Node):
             return
         now = self._now()
         large = len(raw) > IN_THREAD_BYTES
-        self._arrivals += 1
-        arrived = self._arrivals
+        arrived = self.policy.arrive()
         if self.trigger == "state" and not large:
             self._take_reference(self._build_reference(raw, now), arrived)
             return
@@ -488,13 +456,15 @@ class JointController(Node):
         off the control path from its ``arrival`` whose stamp was zero ("now") starts now,
         when it is taken, as joint_trajectory_controller starts such a trajectory at its
         first sample: its beginning is not lost to the build time."""
-        if arrived <= self._forgotten:
-            return
-        if isinstance(result, str):
+        start = None
+        if arrival is not None and not isinstance(result, str) and result.start == arrival:
+            start = self._now()
+        taken = self.policy.take_reference(result, arrived, start)
+        if taken is Taken.REJECTED:
             self.counts["rejected.references"] += 1
             self._log.warning("rejected reference", "rejected reference: {}", result)
             return
-        if arrived < self._taken:
+        if taken is Taken.SUPERSEDED:
             self.counts["superseded.references"] += 1
             self._log.warning(
                 "superseded reference",
@@ -502,10 +472,10 @@ class JointController(Node):
                 len(result.times),
             )
             return
-        self._taken = arrived
-        if arrival is not None and result.start == arrival:
-            result = dataclasses.replace(result, start=self._now())
-        self.core.add_trajectory(result)
+        if taken is not Taken.TAKEN:  # forgotten: it arrived before a restart
+            return
+        if start is not None:
+            result = dataclasses.replace(result, start=start)
         self.get_logger().info(
             f"reference accepted: {len(result.times)} point(s) from t={result.start:.3f} s"
         )
@@ -562,7 +532,7 @@ class JointController(Node):
         self._state_sent_ns = info["source_timestamp"]
         self._state_arrival = time.monotonic()
         if self.trigger == "state":
-            if stamp == self._answered_ns:  # the same state again: repeat the answer
+            if stamp == self.policy.answered_ns:  # the same state again: repeat the answer
                 self._pub.publish(self._command_bytes)
                 return
             self._answer(start, previous)
@@ -587,12 +557,12 @@ class JointController(Node):
             return
         now = self._now()
         # judged by arrival on this node's steady clock: the stamps are the plant's time
-        if time.monotonic() - self._state_arrival > self._state_timeout:
+        if time.monotonic() - self._state_arrival > self.policy.state_timeout:
             if not self._silent:
                 self._log.error(
                     "not commanding",
                     "no joint state for more than {} s: not commanding",
-                    self._state_timeout,
+                    self.policy.state_timeout,
                 )
                 self._silent = True
                 self.counts["stale.stops"] += 1
@@ -623,9 +593,10 @@ class JointController(Node):
             self.get_logger().error(text)
 
     def _restart(self) -> None:
-        self._forgotten = self._arrivals  # references being built now are of the time before
-        with self._lock:  # gains designed at start: again at the next state
-            self.core.restart()
+        # references being built now are of the time before; gains designed at start are
+        # designed again at the next state
+        with self._lock:
+            self.policy.restart()
 
     # -- trigger: auto -----------------------------------------------------------------
     def _on_plant_mode(self, trigger: str, reason: str) -> None:
@@ -661,7 +632,7 @@ class JointController(Node):
         self.trigger, self._trigger_reason = trigger, reason
         self._nominal_ns = round(1e9 / self._rate) if trigger == "timer" else -1
         with self._lock:
-            self.core.set_sampling(sampling(self._values, trigger, self._rate))
+            self.policy.set_trigger(trigger)
         if self._timer is not None:
             if trigger == "timer":
                 self._timer.reset()
@@ -670,11 +641,15 @@ class JointController(Node):
         if was != "pending":  # another plant: another time base, start over from it
             self._restart()
         self.get_logger().info(self._trigger_text())
-        self._publish_config(self._values)
+        self._publish_config()
         deferred, self._deferred = self._deferred, []
         for raw in deferred:
             self._on_reference(raw)
-        if trigger == "state" and self._q is not None and self._state_ns != self._answered_ns:
+        if (
+            trigger == "state"
+            and self._q is not None
+            and self._state_ns != self.policy.answered_ns
+        ):
             # the plant has been waiting for this answer
             self._answer(time.perf_counter_ns(), -1)
 
@@ -722,46 +697,34 @@ class JointController(Node):
         computed: then nothing is published (the plant keeps its last command, then its
         timeout acts)."""
         with self._lock:
-            designing = self.core.gains_pending
-            held = self._last_step
-            try:
-                step = self.core.step(t, self._q, self._dq, self._state_ns * 1e-9)
-            except ValueError as err:  # velocity_source measured, this state has none
-                self._log.error("no command", "no command: {}", err)
-                return -1
-            if not self._gravity_checked:
+            answer = self.policy.step(t, self._q, self._dq, self._state_ns)
+            step = answer.step
+            if step is not None and not self._gravity_checked:
                 self._gravity_checked = True
                 self._say_unholdable(self._q)
-            if step is held:  # inside a control period: the held torque answers this state
+            if answer.kind is Kind.HELD:  # inside a control period: the held torque answers
                 self._command.set_stamp(self._state_ns)
                 self._command_bytes = self._command.to_bytes()
                 self._pub.publish(self._command_bytes)
-                self._answered_ns = self._state_ns
                 return time.time_ns()
-            self._last_step = step
+            if step is None:  # velocity_source measured, this state has none
+                self._log.error("no command", "no command: {}", answer.reason)
+                return -1
             if step.tau is None:
                 self.counts["dropped.nonfinite_torques"] += 1
-                self._log.error(
-                    "non-finite torque",
-                    "non-finite torque {} at t={:.4f} s (q={}, q̇={}): no command sent",
-                    step.unclamped,
-                    t,
-                    self._q,
-                    self._dq,
-                )
+                self._log.error("non-finite torque", "{}: no command sent", answer.reason)
                 return -1
-            if beyond_bound(step.unclamped, self.effort_limits, self._reject_factor):
+            factor = self.policy.reject_factor
+            if beyond_bound(step.unclamped, self.effort_limits, factor):
                 # legitimate at saturation (still clamped and sent), but a law this far
                 # beyond the limits points at a bug or a broken input: counted, said
                 self.counts["beyond_bound.torques"] += 1
                 self._log.warning(
                     "beyond bound",
                     lambda: (
-                        f"computed torque beyond {self._reject_factor:g} × the effort limits "
+                        f"computed torque beyond {factor:g} × the effort limits "
                         "(reject_factor): clamped; "
-                        + joints_beyond(
-                            step.unclamped, self.effort_limits, self.joints, self._reject_factor
-                        )
+                        + joints_beyond(step.unclamped, self.effort_limits, self.joints, factor)
                     ),
                 )
             listening = self._state_pub.get_subscription_count() > 0  # else: nothing to build
@@ -769,14 +732,13 @@ class JointController(Node):
             self._command_bytes = self._command.to_bytes()
             self._pub.publish(self._command_bytes)
             sent = time.time_ns()
-            self._answered_ns = self._state_ns
             if listening:
                 self._state_pub.publish(self._state.to_bytes())
         self._say_sampling()
-        if designing:  # at the first measured configuration, again after each restart
+        if answer.designed:  # at the first measured configuration, again after each restart
             self._log.info(
                 "gains designed",
                 lambda: f"gains {self._gains_text()} at q0={self.core.q0.tolist()}",
             )
-            self._publish_config(self._values)
+            self._publish_config()
         return sent

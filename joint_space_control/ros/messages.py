@@ -18,8 +18,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from joint_space_control.control.controller import STATE_FIELDS  # noqa: F401  (re-exported)
 from joint_space_control.json_values import jsonable
-from joint_space_control.trajectories.reference import Trajectory
+from joint_space_control.trajectories.reference import Trajectory, checked_trajectory
 
 #: Control topics: the newest sample is the only one that matters; reliable so that a
 #: lockstep exchange never loses the one message it waits for.
@@ -75,22 +76,6 @@ CONFIG_QOS = QoSProfile(
     depth=1,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-
-#: Rows of the controller state matrix published on ``~/state`` (see README).
-STATE_FIELDS = (
-    "q_d",
-    "dq_d",
-    "ddq_d",
-    "q",
-    "dq",
-    "error",
-    "derror",
-    "tau_feedback",
-    "tau_model",
-    "tau_gravity",
-    "tau_unclamped",
-    "tau",
 )
 
 
@@ -319,36 +304,22 @@ def trajectory_from_msg(
         finite = np.isfinite(arrays[name]).all(axis=1)
         if not finite.all():
             raise ValueError(f"non-finite point {int(np.argmin(finite))} {what}")
-    # exact on the message's integers; within MAX_REFERENCE_DURATION the seconds (float64,
-    # spacing ≤ 1.5e-11 s there) keep 1 ns apart times apart and in order
-    if times_ns[0] < 0 or np.any(np.diff(times_ns) <= 0):
-        raise ValueError(
-            f"time_from_start must be >= 0 and strictly increasing: {times_ns.tolist()} ns"
-        )
     positions = arrays["positions"][:, idx]
     velocities = arrays["velocities"][:, idx] if given["velocities"].any() else None
     accelerations = arrays["accelerations"][:, idx] if given["accelerations"].any() else None
     stamp = stamp_to_ns(msg.header.stamp)
     start = now if stamp == 0 else (stamp - origin_ns) * 1e-9
-    traj = Trajectory.build(start, times, positions, velocities, accelerations)
-    if traj.end < now:
-        raise ValueError(f"trajectory ended at t={traj.end:.3f} s, before now (t={now:.3f} s)")
-    if position_limits is not None:
-        _check_limits(traj.positions, position_limits, order.joints)
-    return traj
-
-
-def _check_limits(
-    positions: np.ndarray, limits: tuple[np.ndarray, np.ndarray], joints: Sequence[str]
-) -> None:
-    lower, upper = limits
-    outside = (positions < lower) | (positions > upper)
-    if outside.any():
-        k, j = np.argwhere(outside)[0]
-        raise ValueError(
-            f"point {k}: {joints[j]} position {positions[k, j]:.4g} outside its limits "
-            f"[{lower[j]:.4g}, {upper[j]:.4g}] (rejected, not clamped)"
-        )
+    return checked_trajectory(
+        start,
+        times_ns,
+        times,
+        positions,
+        velocities,
+        accelerations,
+        now,
+        position_limits,
+        order.joints,
+    )
 
 
 def state_message(joints: Sequence[str]) -> Float64MultiArray:

@@ -27,7 +27,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from joint_space_control.control.controller import Step
+from joint_space_control.control.controller import Step, state_row
 from joint_space_control.ros.messages import JointOrder
 
 #: Encapsulation header of a little-endian plain CDR payload.
@@ -326,23 +326,6 @@ def fill_images(
     command.set_stamp(stamp_ns)
     if state is None:
         return
-    ref, split, q, dq = step.ref, step.split, step.q, step.dq
     data = state.data
     data[0] = stamp_ns * 1e-9
-    np.concatenate(
-        (
-            ref.q,
-            ref.dq,
-            ref.ddq,
-            q,
-            dq,
-            ref.q - q,
-            ref.dq - dq,
-            split.feedback,
-            split.model,
-            split.gravity,
-            step.unclamped,
-            step.tau,
-        ),
-        out=data[1:],
-    )
+    state_row(step, out=data[1:])

@@ -55,6 +55,7 @@ trajectory is discontinuous only where its first point differs from what was tra
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -145,6 +146,52 @@ class Trajectory:
         if self.velocities_given or self.accelerations_given or self.times.size < 2:
             return self
         return dataclasses.replace(self, basis=SplineBasis.of(self))
+
+
+def checked_trajectory(
+    start: float,
+    times_ns: np.ndarray,
+    times: np.ndarray,
+    positions: np.ndarray,
+    velocities: np.ndarray | None,
+    accelerations: np.ndarray | None,
+    now: float,
+    position_limits: tuple[np.ndarray, np.ndarray] | None = None,
+    joints: Sequence[str] = (),
+) -> Trajectory:
+    """A reference as a controller accepts it (``ValueError`` with the reason otherwise):
+    points at ``times_ns`` [ns] (``times`` the same in seconds) after ``start`` [s], rows in
+    the order of the controlled ``joints``; the times at or after 0 and strictly increasing
+    (judged on the integers), the trajectory not ended before ``now`` [s], every point within
+    ``position_limits`` (lower, upper): a set-point outside is rejected, not clamped, since a
+    clamped set-point is another motion than the one asked for."""
+    # exact on the integers; within a day the seconds (float64, spacing ≤ 1.5e-11 s there)
+    # keep 1 ns apart times apart and in order
+    if times_ns[0] < 0 or np.any(np.diff(times_ns) <= 0):
+        given = np.asarray(times_ns).tolist()
+        raise ValueError(f"time_from_start must be >= 0 and strictly increasing: {given} ns")
+    traj = Trajectory.build(start, times, positions, velocities, accelerations)
+    if traj.end < now:
+        raise ValueError(f"trajectory ended at t={traj.end:.3f} s, before now (t={now:.3f} s)")
+    if position_limits is not None:
+        lower, upper = position_limits
+        outside = (traj.positions < lower) | (traj.positions > upper)
+        if outside.any():
+            k, j = np.argwhere(outside)[0]
+            raise ValueError(
+                f"point {k}: {joints[j]} position {traj.positions[k, j]:.4g} outside its "
+                f"limits [{lower[j]:.4g}, {upper[j]:.4g}] (rejected, not clamped)"
+            )
+    return traj
+
+
+def times_in_seconds(times: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """Times [s] as a JointTrajectory carries them: whole nanoseconds (``time_from_start``),
+    and the seconds read back from them (sec + 1e-9·nanosec), so that a reference given as
+    numbers and one sent as a message are the same trajectory to the bit."""
+    times_ns = np.array([round(float(t) * 1e9) for t in times], dtype=np.int64)
+    sec, nsec = np.divmod(times_ns, 1_000_000_000)
+    return times_ns, sec.astype(float) + 1e-9 * nsec.astype(float)
 
 
 @dataclass(frozen=True)
