@@ -225,11 +225,15 @@ def _figures(figures: Mapping[str, Path], out_dir: Path) -> list[str]:
 
 def render_report(metrics: dict, figures: Mapping[str, Mapping[str, Path]], out_dir: Path) -> str:
     """The Markdown report; ``figures`` maps node → figure name → PNG path."""
+    bag = metrics["bag"]
     lines = [
-        f"# Run analysis: {Path(metrics['bag']).name}",
+        f"# Run analysis: {Path(bag).name if bag else 'a run in process'}",
         "",
-        f"- bag: `{metrics['bag']}` ({metrics['storage']}), {fmt(metrics['duration_s'])} s "
-        f"of log time, {metrics['message_count']} messages",
+        f"- bag: `{bag}` ({metrics['storage']}), {fmt(metrics['duration_s'])} s "
+        f"of log time, {metrics['message_count']} messages"
+        if bag
+        else f"- not recorded: {fmt(metrics['duration_s'])} s of simulated time, "
+        f"{metrics['message_count']} messages the nodes would have published",
         "- units: positions in rad, torques in N·m, times in s, control periods in ms",
         "",
     ]

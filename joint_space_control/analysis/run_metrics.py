@@ -65,9 +65,10 @@ class ControllerAnalysis:
 
 @dataclass(frozen=True)
 class BagAnalysis:
-    """Every controller of a bag; ``metrics`` is the JSON-ready document (``metrics.json``)."""
+    """Every controller of a run; ``metrics`` is the JSON-ready document (``metrics.json``);
+    ``contents``: the bag's (None: a run measured from memory, with no bag)."""
 
-    contents: BagContents
+    contents: BagContents | None
     controllers: list[ControllerAnalysis]
     metrics: dict
 
@@ -83,20 +84,13 @@ def analyze_bag(path: str | Path, progress: Progress | None = None) -> BagAnalys
     """
     contents = read_controller_bag(path, progress)
     warnings: list[str] = []
-    controllers = []
+    records = []
     for state_topic, config_topic in contents.controllers:
         configs = []
         if config_topic is not None:
             configs = controller_configs(contents.data[config_topic], warnings)
-        state = controller_state(contents.data[state_topic])
-        analysis = controller_analysis(state, configs)
-        if analysis is None:
-            warnings.append(f"{state_topic}: no sample with finite values, not analysed")
-        else:
-            controllers.append(analysis)
-    if not controllers:
-        raise BagError(f"{contents.path}: no controller state with finite values to analyse")
-    result = {
+        records.append((controller_state(contents.data[state_topic]), configs))
+    recording = {
         "bag": str(contents.path),
         "storage": contents.storage,
         "start_time_ns": contents.start_ns,
@@ -104,6 +98,35 @@ def analyze_bag(path: str | Path, progress: Progress | None = None) -> BagAnalys
         "message_count": contents.message_count,
         "message_counts": {t.name: t.count for t in contents.topics.values()},
         "topic_types": {t.name: t.msgtype for t in contents.topics.values()},
+    }
+    try:
+        return analyze_run(records, recording, warnings, contents)
+    except ValueError as err:
+        raise BagError(f"{contents.path}: {err}") from None
+
+
+def analyze_run(
+    records: Sequence[tuple[ControllerState, Sequence[tuple[int, dict]]]],
+    recording: dict,
+    warnings: list[str] | None = None,
+    contents: BagContents | None = None,
+) -> BagAnalysis:
+    """Measure every controller of a run from its state record and configurations (log
+    time [ns], document), as read from a bag or kept in memory by the loop in process;
+    ``recording`` says what was recorded (``bag``, ``storage``, ``message_counts``, ...;
+    ``bag`` None: nothing was). ValueError when no controller has a sample to measure."""
+    warnings = [] if warnings is None else warnings
+    controllers = []
+    for state, configs in records:
+        analysis = controller_analysis(state, configs)
+        if analysis is None:
+            warnings.append(f"{state.topic}: no sample with finite values, not analysed")
+        else:
+            controllers.append(analysis)
+    if not controllers:
+        raise ValueError("no controller state with finite values to analyse")
+    result = {
+        **recording,
         "units": UNITS,
         "controllers": {c.metrics["node"]: c.metrics for c in controllers},
         "warnings": warnings

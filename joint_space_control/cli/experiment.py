@@ -38,9 +38,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--scheduler",
         default=None,
         metavar="ADDRESS|threads",
-        help="where the runs execute: a Dask LocalCluster of --jobs workers (default), an "
-        "existing Dask scheduler tcp://HOST:PORT (--out must then be a directory every "
-        "worker reaches at the same path), or 'threads' (threads of this process, no Dask)",
+        help="where the runs execute: a Dask LocalCluster of --jobs workers (the default "
+        "with --engine ros), an existing Dask scheduler tcp://HOST:PORT (--out must then be "
+        "a directory every worker reaches at the same path), or 'threads' (threads of this "
+        "process, no Dask: the default with --engine inprocess, whose runs take less time "
+        "than a cluster takes to start)",
     )
     p.add_argument(
         "--engine",
@@ -49,6 +51,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="ros (default): the nodes as processes over ROS 2, as users run them; "
         "inprocess: the same plant and controller objects in the worker's process, no ROS "
         "graph (lockstep only; the same metrics and check texts, much faster)",
+    )
+    p.add_argument(
+        "--record",
+        action="store_true",
+        help="with --engine inprocess, also write each run's bag (RUN/bag/, as the recorder "
+        "records the nodes); runs on ROS are always recorded",
     )
     p.add_argument(
         "--plant-engine",
@@ -85,6 +93,7 @@ def _handle(args: argparse.Namespace) -> int:
         args.params_file,
         args.engine,
         args.plant_engine,
+        args.record,
     )
 
 
@@ -115,6 +124,7 @@ def run(
     params_file: Path | None = None,
     engine: str = "ros",
     plant_engine: str = "pybullet",
+    record: bool = False,
 ) -> int:
     """Run the scenarios, all on one pool (:class:`RunPool`: ``scheduler`` None, a
     LocalCluster of ``jobs`` workers; an address; or ``"threads"``). Ctrl-C cancels the
@@ -153,6 +163,8 @@ def run(
     def log(message: str) -> None:
         print(message, flush=True)
 
+    if scheduler is None and engine == "inprocess":
+        scheduler = "threads"  # runs of a second or less: no cluster to start for them
     try:
         pool = RunPool(jobs, scheduler, log)
     except ValueError as err:
@@ -182,7 +194,7 @@ def run(
         for k, (plant, scenario, where) in enumerate(runs):
             on = f" [{plant}]" if len(plant_engines) > 1 else ""
             print(f"{_bar(k, len(runs))} {scenario.name}{on}: {scenario.title}", flush=True)
-            result = run_experiment(scenario, where, short, pool, log, engine)
+            result = run_experiment(scenario, where, short, pool, log, engine, record)
             by_engine[plant].append(result)
             verdict = {True: "agrees with the theory", False: "FAILED", None: "ran"}[result.passed]
             print(f"  -> {verdict}: {result.out / 'summary.md'}", flush=True)

@@ -59,6 +59,7 @@ def run_experiment(
     pool: RunPool | None = None,
     log: Callable[[str], None] = print,
     engine: str = "ros",
+    record: bool = False,
 ) -> ExperimentResult:
     """The scenario's runs (tasks of ``pool``; None: two threads here), its checks, its
     figures and summary, in ``out/<name>/``. The runs write their bags and reports there
@@ -67,7 +68,7 @@ def run_experiment(
     out = out / scenario.name
     if out.exists():
         shutil.rmtree(out)  # the experiment's own directory: a rerun replaces it
-    runs = run_scenario(scenario, out, short, pool, log, engine)
+    runs = run_scenario(scenario, out, short, pool, log, engine, record)
     errors = [f"{r.label}: {r.error}" for r in runs if r.error]
     views = [
         RunView(

@@ -90,6 +90,33 @@ def example_robot_data_share() -> Path | None:
     return share if (share / "example-robot-data" / "robots").is_dir() else None
 
 
+#: The arms of ``example-robot-data`` by a short name: their description in its robots folder.
+EXAMPLE_ROBOTS = {
+    "ur3": "ur_description/urdf/ur3_robot.urdf",
+    "ur5": "ur_description/urdf/ur5_robot.urdf",
+    "ur10": "ur_description/urdf/ur10_robot.urdf",
+    "panda": "panda_description/urdf/panda.urdf",
+    "xarm7": "xarm_description/urdf/xarm7.urdf",
+    "kinova": "kinova_description/robots/kinova.urdf",
+    "z1": "z1_description/urdf/z1.urdf",
+    "so100": "so_arm_description/urdf/so100.urdf",
+    "so101": "so_arm_description/urdf/so101.urdf",
+}
+
+
+def example_robot(name: str) -> dict[str, Any]:
+    """The robot parameters (``urdf_path``, ``package_paths``) that load the arm ``name`` of
+    :data:`EXAMPLE_ROBOTS` from ``example-robot-data`` (ValueError when the name is unknown
+    or the package is not installed: ``pip install example-robot-data``)."""
+    if name not in EXAMPLE_ROBOTS:
+        raise ValueError(f"unknown example robot {name!r}; known: {', '.join(EXAMPLE_ROBOTS)}")
+    share = example_robot_data_share()
+    if share is None:
+        raise ValueError("example-robot-data is not installed (pip install example-robot-data)")
+    path = share / "example-robot-data" / "robots" / EXAMPLE_ROBOTS[name]
+    return {"urdf_path": str(path), "package_paths": [str(share)]}
+
+
 def resolve_robot(
     robot: str = "",
     urdf_path: str = "",

@@ -20,8 +20,11 @@ PACKAGES = ("joint_space_control", "sim_bridge")
 # - arrays, paths, json_values, enums, machine, memory, scheduling, throttle, time_jumps,
 #   staleness: no knowledge of robots, control or ROS;
 # - model, laws, trajectories: the maths of the robot and the control laws;
-# - control: the controllers themselves (configuration, state, step), no ROS;
+# - control: the controllers themselves (configuration, state, step) and the policy a node
+#   drives them by, no ROS;
+# - the plant (PLANT): sim_bridge's engines and robot plants, no ROS;
 # - analysis, recording: bags and metrics (rosbags, matplotlib; no running ROS graph);
+# - simulation: the closed loop in one process (plant + policy), simulate() -> Response;
 # - ros: the ROS 2 layer the nodes share (parameters, messages, control path, diagnostics);
 # - nodes, dashboard, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level
 #   package; dashboard holds the web page the dashboard node serves);
@@ -34,6 +37,19 @@ PACKAGES = ("joint_space_control", "sim_bridge")
 # - bench: measurements that drive the experiments' process machinery;
 # - tuning: jsc tune's study, whose trials are experiment runs;
 # - cli: argument parsing that calls the layers below.
+#: sim_bridge's plant: the engines and what a robot's plant does on them, with no ROS (the
+#: node around them is in sim_bridge's other modules).
+PLANT = (
+    "sim_bridge.torque_plant",
+    "sim_bridge.plant",
+    "sim_bridge.mujoco_plant",
+    "sim_bridge.engines",
+    "sim_bridge.robot_plant",
+    "sim_bridge.sensors",
+    "sim_bridge.wrench",
+    "sim_bridge.parameters",
+    "sim_bridge.view",
+)
 LAYERS: tuple[tuple[str, ...], ...] = (
     (
         "joint_space_control.arrays",
@@ -54,7 +70,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "joint_space_control.robots",
     ),
     ("joint_space_control.control",),
+    PLANT,
     ("joint_space_control.analysis", "joint_space_control.recording"),
+    ("joint_space_control.simulation",),
     ("joint_space_control.ros",),
     ("joint_space_control.nodes", "joint_space_control.dashboard", "sim_bridge"),
     ("joint_space_control.experiments",),
@@ -130,3 +148,29 @@ def test_layer_walk_sees_deferred_and_relative_imports():
         ("joint_space_control.bench.run", LAYERS.index(("joint_space_control.bench",))),
         ("joint_space_control.cli.analyze", LAYERS.index(("joint_space_control.cli",))),
     ]
+
+
+def test_the_loop_imports_no_ros():
+    """The closed loop and what it is built on import no ROS package, at any depth: the
+    simulation runs where rclpy is not installed."""
+    below_ros = LAYERS.index(("joint_space_control.ros",))
+    ros = (
+        "rclpy",
+        "rcl_interfaces",
+        "sensor_msgs",
+        "std_msgs",
+        "trajectory_msgs",
+        "rosgraph_msgs",
+    )
+    found = []
+    for path in sources():
+        module = module_name(path)
+        level = layer_of(module)
+        if level is None or level >= below_ros:
+            continue
+        tree = ast.parse(path.read_text(), str(path))
+        for line, name in imported_modules(tree, module, path.name == "__init__.py"):
+            if name.split(".")[0] in ros:
+                found.append(f"{path.relative_to(ROOT)}:{line} imports {name}")
+    assert found == []
+    assert any(module_name(p).startswith("joint_space_control.simulation") for p in sources())

@@ -30,7 +30,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from joint_space_control.analysis.bag import BagReader, ControllerState, JointStates, joint_states
-from joint_space_control.analysis.pipeline import analyze_bag_to
+from joint_space_control.analysis.pipeline import analyze_bag_to, write_analysis
+from joint_space_control.analysis.run_metrics import analyze_run
 from joint_space_control.arrays import per_joint
 from joint_space_control.experiments.execution import values
 from joint_space_control.experiments.execution.distributed import RunPool, on_cancel
@@ -38,6 +39,7 @@ from joint_space_control.experiments.harness.loop import TRUTH_TOPIC, ClosedLoop
 from joint_space_control.experiments.harness.probe import in_namespace
 from joint_space_control.experiments.scenarios.format import RobotSetup, Scenario, build_reference
 from joint_space_control.laws.pd_gravity import iterative_gravity_estimate
+from joint_space_control.simulation.response import Response
 from joint_space_control.trajectories.reference import Trajectory
 
 
@@ -58,6 +60,8 @@ class RunResult:
     """The controller's recorded ``~/state`` as analysed (for checks that need signals)."""
     truth: JointStates | None = None
     """The plant's true state, recorded when its measurement is imperfect (else None)."""
+    response: Response | None = None
+    """The robot's run as arrays (the in-process engine's; None on the ROS engine)."""
     figures: dict[str, Path] = field(default_factory=dict)
     """The controller's figures in ``report/`` (name → PNG: ``positions``, ``error``, …)."""
     timings: dict[str, float] = field(default_factory=dict)
@@ -84,7 +88,12 @@ PREVIOUS_ATTEMPT_WAIT = 10.0
 
 
 def execute_run(
-    run: Scenario, target: Path, short: bool, engine: str = "ros", figures: bool = True
+    run: Scenario,
+    target: Path,
+    short: bool,
+    engine: str = "ros",
+    figures: bool = True,
+    record: bool = False,
 ) -> list[RunResult]:
     """One run of a scenario as a pool task (top-level and picklable, for Dask workers):
     the run into ``target`` (:func:`run_once`), one result per robot of the run; its
@@ -97,7 +106,7 @@ def execute_run(
     results = [RunResult(s.name or label, run.of_robot(s), target, s.name) for s in run.setups()]
     _clear_previous_attempt(target)
     try:
-        run_once(run, target, short, results, engine, figures)
+        run_once(run, target, short, results, engine, figures, record)
     except Exception as err:  # noqa: BLE001 - reported, the other runs go on
         for result in results:
             result.error = f"{type(err).__name__}: {err}"
@@ -152,6 +161,7 @@ def run_scenario(
     pool: RunPool | None = None,
     log: Callable[[str], None] = print,
     engine: str = "ros",
+    record: bool = False,
 ) -> list[RunResult]:
     """Every run of ``scenario`` (one, or one per variant), each a task of ``pool`` (None:
     two threads of this process): a result per run, or per robot of each run in a world of
@@ -168,7 +178,8 @@ def run_scenario(
         futures = {}
         for label, run in runs:
             target = out if len(runs) == 1 else out / _safe(label)
-            futures[pool.submit(run.name, execute_run, run, target, short, engine)] = (
+            task = pool.submit(run.name, execute_run, run, target, short, engine, True, record)
+            futures[task] = (
                 label,
                 run,
                 target,
@@ -222,10 +233,13 @@ def run_once(
     results: list[RunResult],
     engine: str = "ros",
     figures: bool = True,
+    record: bool = False,
 ) -> None:
     """One closed-loop run into ``out`` (bag/, report/, logs/, events.json) on ``engine``
     (its report without figures unless ``figures``); ``results``: one per robot of
-    ``scenario.setups()``, in that order."""
+    ``scenario.setups()``, in that order. A run on the ROS engine is always recorded (its
+    nodes' messages are what it is measured from); one in process is measured from memory
+    and written to ``bag/`` only with ``record``."""
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; known: {', '.join(ENGINES)}")
     out.mkdir(parents=True, exist_ok=True)
@@ -251,22 +265,34 @@ def run_once(
             _drive(RosRun(loop), scenario, duration, results)
             lap("run")
             loop.settle_recording()
+        lap("stop")
+        (out / "events.json").write_text(json.dumps(_events(results), indent=1))
+        analysis = analyze_bag_to(out / "report", bag, figures=figures)
+        truths = [true_states(bag, r.namespace) for r in results]
     else:
         # pybullet (its banner on stdout) only where a run is
-        from joint_space_control.experiments.execution.inprocess import InProcessLoop
+        from joint_space_control.experiments.execution.inprocess import InProcessLoop, recording
 
-        loop = InProcessLoop(scenario.setups(), sim_params, bag)
+        loop = InProcessLoop(scenario.setups(), sim_params, bag if record else None)
         try:
             lap("start")
             _drive(loop, scenario, duration, results)
             lap("run")
         finally:
             loop.close()
-    lap("stop")
-    (out / "events.json").write_text(json.dumps(_events(results), indent=1))
-    analysis = analyze_bag_to(out / "report", bag, figures=figures)
+        lap("stop")
+        (out / "events.json").write_text(json.dumps(_events(results), indent=1))
+        responses = [loop.response(r.namespace) for r in results]
+        measured = analyze_run(
+            [(r.steps, r.configs) for r in responses],
+            recording(loop.world, bag if record else None),
+        )
+        analysis = write_analysis(measured, out / "report", figures=figures)
+        truths = [_truth(r, result.namespace) for r, result in zip(responses, results)]
+        for result, response in zip(results, responses, strict=True):
+            result.response = response
     lap("analysis")
-    for result in results:
+    for result, truth in zip(results, truths, strict=True):
         result.timings = dict(timings)
         result.metrics = analysis.metrics
         result.state = next(
@@ -274,7 +300,23 @@ def run_once(
             None,
         )
         result.figures = analysis.figures.get(result.node, {})
-        result.truth = true_states(bag, result.namespace)
+        result.truth = truth
+
+
+def _truth(response: Response, namespace: str) -> JointStates | None:
+    """The plant's true state of an in-process run, as a recording of it reads it (logged
+    just before the measured state of the same instant)."""
+    if response.q_true is None:
+        return None
+    return JointStates(
+        "/" + in_namespace(namespace, TRUTH_TOPIC),
+        response.joints,
+        response.t,
+        response.log_times["states"] - 1,
+        response.q_true,
+        response.dq_true,
+        response.tau_applied,
+    )
 
 
 def _closed_loop(

@@ -34,7 +34,10 @@ def _cell(text: str) -> str:
 
 
 def published_positions(run: RunResult) -> tuple[np.ndarray, np.ndarray]:
-    """(stamps [ns], positions) of the states the plant published in ``run``'s bag."""
+    """(stamps [ns], positions) of the states the plant published in ``run``: kept in
+    memory (in process) or read from its bag."""
+    if run.response is not None:
+        return np.round(run.response.t * 1e9).astype(np.int64), run.response.q
     topic = f"/{run.namespace}/joint_states" if run.namespace else "/joint_states"
     states = joint_states(read_bag(run.out / "bag", [topic]).data[topic])
     return np.round(states.stamp * 1e9).astype(np.int64), states.position
