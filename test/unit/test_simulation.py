@@ -26,7 +26,8 @@ def test_nominal_inverse_dynamics_is_the_second_order_step(engine):
     """THEORY.md §3: nominal inverse dynamics makes every joint the second-order loop of
     its ω_n, ζ: with ζ = 1 a step has no overshoot and settles to 2 % at the closed-form
     critically damped time (ω_n t = 5.834), here within 1 % (the sampled loop lags the
-    continuous one by about a period; the experiments' check allows 5 %). The arm hangs (q0 = (−π/2, 0)) so that the step's torque stays inside the limits."""
+    continuous one by about a period; the experiments' check allows 5 %). The arm hangs
+    (q0 = (−π/2, 0)) so that the step's torque stays inside the limits."""
     omega = 8.0
     q0 = [-math.pi / 2, 0.0]
     r = simulate(

@@ -288,9 +288,10 @@ def run_once(
             recording(loop.world, bag if record else None),
         )
         analysis = write_analysis(measured, out / "report", figures=figures)
-        truths = [_truth(r, result.namespace) for r, result in zip(responses, results)]
+        truths = []
         for result, response in zip(results, responses, strict=True):
             result.response = response
+            truths.append(_truth(response, result.namespace))
     lap("analysis")
     for result, truth in zip(results, truths, strict=True):
         result.timings = dict(timings)
