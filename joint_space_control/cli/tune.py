@@ -104,8 +104,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         choices=GAINS,
         default="omega_zeta",
         help="search per-joint ω_n, ζ (default; the nodes' omega_n/zeta) or kp, kd directly "
-        "(K_P in b·[ω_lo², ω_hi²], K_D in b·[2ζ_lo ω_lo, 2ζ_hi ω_hi], b = B̂_ii(q0) for "
-        "pd_gravity, 1 for inverse_dynamics)",
+        "(K_P in b·[ω_lo², ω_hi²], K_D in b·[2ζ_lo ω_lo, 2ζ_hi ω_hi], b the inertia each "
+        "joint sees along the step, B̂_ii(q0) + |Σ_j≠i B̂_ij Δq_j / Δq_i|, for pd_gravity, 1 "
+        "for inverse_dynamics)",
     )
     p.add_argument(
         "--omega-n",
@@ -216,7 +217,10 @@ def run(
         from joint_space_control.experiments.execution.runner import execute_run
 
         # a trial needs its metrics, not its figures (most of a short run's analysis)
-        pool_class, task = RunPool, partial(execute_run, engine=options.engine, figures=False)
+        pool_class, task = (
+            RunPool,
+            partial(execute_run, engine=options.engine, figures=False, record=True),
+        )
         if confirm is None:
             confirm = partial(execute_run, short=False, engine="ros")
     if confirm is None:  # a stand-in task (tests): it is its own ROS engine

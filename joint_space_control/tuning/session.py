@@ -11,6 +11,7 @@ import shutil
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,13 @@ from joint_space_control.experiments.execution.equivalence import differences
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import builtin_robots, resolve_robot
 from joint_space_control.tuning import figures, outputs
-from joint_space_control.tuning.design import theory_design
+from joint_space_control.tuning.design import (
+    ZETA_LADDER,
+    effective_inertia,
+    theory_design,
+    time_scale,
+    zeta_ladder,
+)
 from joint_space_control.tuning.problem import (
     CONTROLLERS,
     DEFAULT_DURATION,
@@ -91,6 +98,9 @@ class Prepared:
     warnings: list[str] = field(default_factory=list)
     design: dict[str, float] | None = None
     """The theory's point for the spec (the first trial of a new study), or None."""
+    stage: list[dict[str, float]] = field(default_factory=list)
+    """The shared stage's other points, run after the design (PD + g(q)); each of them and
+    the design is then run again time-scaled where it missed only time bounds."""
 
 
 def _is_file(robot: str) -> bool:
@@ -149,9 +159,12 @@ def prepare(options: TuneOptions) -> Prepared:
         options.step,
         None if options.q0 is None else np.array(options.q0, dtype=float),
     )
+    pd = controller == "pd_gravity_controller"
+    inertia_q0 = model.inertia(q0)
+    # PD + g(q): gains scaled by the inertia each joint sees along the step, not diag B̂(q0)
     inertia: tuple[float, ...] = ()
-    if options.gains == "kp_kd" and controller == "pd_gravity_controller":
-        inertia = tuple(float(b) for b in np.diag(model.inertia(q0)))
+    if pd:
+        inertia = tuple(float(b) for b in effective_inertia(inertia_q0, target - q0))
     space = SearchSpace(
         tuple(model.joint_names), options.gains, options.omega_n, options.zeta, inertia
     )
@@ -183,16 +196,19 @@ def prepare(options: TuneOptions) -> Prepared:
         "target": target.tolist(),
         "duration": float(options.duration),
     }
-    design = None
+    if pd:
+        settings["inertia"] = list(inertia)
+    design, stage = None, []
     if options.design:
         design = theory_design(
             spec,
             space,
-            np.diag(model.inertia(q0)),
+            inertia or np.diag(inertia_q0),
             model.gravity(q0),
             model.effort_limits,
             target - q0,
         )
+        stage = zeta_ladder(design, space) if pd else []
     return Prepared(
         options,
         problem,
@@ -203,6 +219,7 @@ def prepare(options: TuneOptions) -> Prepared:
         settings,
         list(robot_spec.warnings) + list(model.warnings),
         design,
+        stage,
     )
 
 
@@ -217,7 +234,7 @@ def run(
     study = open_study(prepared.storage, prepared.study_name, o.seed, o.trials, prepared.settings)
     stale = fail_stale(study)
     if not study.trials and prepared.design is not None:
-        study.enqueue_trial(prepared.design, user_attrs={"origin": "theory's design"})
+        study.enqueue_trial(prepared.design, user_attrs={"origin": DESIGN, STAGE: True})
         omega, zeta = prepared.space.second_order(prepared.design)
         log(
             "trial 0 is the theory's design for the spec: ω_n = "
@@ -225,6 +242,16 @@ def run(
             + " rad/s, ζ = "
             + ", ".join(f"{z:.3g}" for z in zeta)
         )
+        for k, point in enumerate(prepared.stage, start=1):
+            dz = ZETA_LADDER[k - 1]
+            study.enqueue_trial(point, user_attrs={"origin": f"design, ζ + {dz:g}", STAGE: True})
+        if prepared.stage:
+            log(
+                f"trials 1-{len(prepared.stage)}: the design with ζ raised by "
+                + ", ".join(f"{dz:g}" for dz in ZETA_LADDER[: len(prepared.stage)])
+                + "; then each of trials 0-"
+                + f"{len(prepared.stage)} that is too slow, time-scaled"
+            )
     done = sum(is_finished(t) for t in study.trials)
     if stale:
         log(f"{stale} trial(s) left running by an earlier session marked failed (interrupted)")
@@ -246,8 +273,41 @@ def run(
         in_flight,
         log,
         batch=o.batch,
+        plan=partial(_time_scaled_stage, prepared, log=log) if prepared.stage else None,
     )
     return study
+
+
+DESIGN = "theory's design"
+STAGE = "shared_stage"
+SCALED_FROM = "time_scaled_from"
+
+
+def _time_scaled_stage(
+    prepared: Prepared, study: optuna.Study, log: Callable[[str], None] = print
+) -> None:
+    """Once the shared stage's trials are told: enqueue each one whose overshoot is met but
+    whose time bounds are missed, or met by less than the margin, again with ω_n × α
+    (tuning/design.py ``time_scale``), once; in trial order, from the values told, so a
+    seeded study enqueues the same."""
+    stage = [t for t in study.trials if t.user_attrs.get(STAGE)]
+    if not stage or any(not t.state.is_finished() for t in stage):
+        return
+    done = {t.user_attrs.get(SCALED_FROM) for t in study.trials}
+    for t in sorted(stage, key=lambda t: t.number):
+        if t.number in done or t.state != TrialState.COMPLETE:
+            continue
+        alpha = time_scale(
+            prepared.problem.spec, t.user_attrs.get("values", []), prepared.problem.duration
+        )
+        if alpha is None:
+            continue
+        point = prepared.space.time_scaled(t.params, alpha)
+        study.enqueue_trial(
+            point,
+            user_attrs={"origin": f"trial {t.number}, ω_n × {alpha:.3g}", SCALED_FROM: t.number},
+        )
+        log(f"trial {t.number} again, {alpha:.3g} times faster: ω_n × {alpha:.3g}, ζ kept")
 
 
 def _state(t: FrozenTrial) -> str:

@@ -6,9 +6,14 @@ inverse dynamics K_P = ω_n², K_D = 2ζω_n; the PD family K_P,i = B̂_ii(q0) �
 K_D,i = 2ζ B̂_ii(q0) ω_n. So one space serves both: ω_n,i log-uniform in ``omega_n`` (rad/s;
 log: a decade of stiffness weighs as much at 2 as at 20 rad/s), ζ_i uniform in ``zeta``.
 
+With an ``inertia`` b (``jsc tune`` gives the PD family the effective inertia each joint sees
+along the step, tuning/design.py), a point (ω_n,i, ζ_i) stands for K_P,i = b_i ω_n,i²,
+K_D,i = 2ζ_i b_i ω_n,i and is written as ``kp``/``kd``: the nodes' own ``omega_n`` rule scales
+by diag B̂(q0), which ignores the coupling.
+
 ``gains="kp_kd"`` searches the gains themselves instead, about the same second-order box:
 K_P,i log-uniform in b_i [ω_lo², ω_hi²] and K_D,i log-uniform in b_i [2ζ_lo ω_lo,
-2ζ_hi ω_hi], with b_i = B̂_ii(q0) for the PD family and 1 for inverse dynamics (its gains are
+2ζ_hi ω_hi], with b_i as above for the PD family and 1 for inverse dynamics (its gains are
 in 1/s² and 1/s); drawn independently, their pairs reach beyond [ζ_lo, ζ_hi] at the corners.
 """
 
@@ -50,7 +55,8 @@ class SearchSpace:
     omega_n: tuple[float, float] = OMEGA_N_RANGE
     zeta: tuple[float, float] = ZETA_RANGE
     inertia: tuple[float, ...] = ()
-    """b_i of the ``kp_kd`` box (empty: 1 on every joint)."""
+    """b_i of K_P,i = b_i ω_n,i², K_D,i = 2ζ_i b_i ω_n,i (empty: 1 on every joint, and an
+    ``omega_zeta`` point is written as the nodes' ``omega_n``/``zeta``)."""
 
     def __post_init__(self) -> None:
         if self.gains not in GAINS:
@@ -91,13 +97,36 @@ class SearchSpace:
             np.array([params[k] for k in names[n:]], dtype=float),
         )
 
+    def point(self, omega_n: np.ndarray, zeta: np.ndarray) -> dict[str, float]:
+        """The point (Optuna parameter names) of per-joint ω_n, ζ (through b_i for
+        ``kp_kd``: K_P = b ω_n², K_D = 2ζ b ω_n), clipped into the box."""
+        omega = np.broadcast_to(np.asarray(omega_n, dtype=float), (len(self.joints),))
+        zetas = np.broadcast_to(np.asarray(zeta, dtype=float), (len(self.joints),))
+        if self.gains == "omega_zeta":
+            values = np.concatenate([omega, zetas])
+        else:
+            values = np.concatenate([self.scale * omega**2, 2 * zetas * self.scale * omega])
+        dists = self.distributions()
+        return {
+            name: float(np.clip(v, dists[name].low, dists[name].high))
+            for name, v in zip(self.names(), values, strict=True)
+        }
+
+    def time_scaled(self, params: dict[str, float], alpha: float) -> dict[str, float]:
+        """The point whose loop is ``params``' run α times faster: ω_n,i → α ω_n,i with ζ_i
+        kept (K_P → α² K_P, K_D → α K_D), clipped into the box."""
+        omega, zeta = self.second_order(params)
+        return self.point(alpha * omega, zeta)
+
     def node_gains(self, params: dict[str, float]) -> dict[str, Any]:
         """The controller parameters of a point: ``omega_n``/``zeta`` with kp = kd = 0, or
-        ``kp``/``kd`` with omega_n = 0 (laws/gains.py: omega_n > 0 wins over kp)."""
+        ``kp``/``kd`` with omega_n = 0 (laws/gains.py: omega_n > 0 wins over kp); with an
+        ``inertia``, always ``kp``/``kd`` (K_P = b ω_n², K_D = 2ζ b ω_n)."""
         a, b = self._pair(params)
-        if self.gains == "omega_zeta":
+        if self.gains == "omega_zeta" and not self.inertia:
             return {"omega_n": a.tolist(), "zeta": b.tolist(), "kp": 0.0, "kd": 0.0}
-        return {"kp": a.tolist(), "kd": b.tolist(), "omega_n": 0.0}
+        kp, kd = self.kp_kd(params)
+        return {"kp": kp.tolist(), "kd": kd.tolist(), "omega_n": 0.0}
 
     def second_order(self, params: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
         """(ω_n, ζ) per joint of a point (of K_P, K_D through b_i for ``kp_kd``)."""
@@ -116,14 +145,15 @@ class SearchSpace:
 
     def describe(self) -> str:
         """The space in one line (help, report)."""
+        inertia = ", b = " + ", ".join(f"{x:.4g}" for x in self.scale)
         if self.gains == "omega_zeta":
             return (
                 f"per joint ω_n log-uniform in [{self.omega_n[0]:g}, {self.omega_n[1]:g}] rad/s,"
                 f" ζ uniform in [{self.zeta[0]:g}, {self.zeta[1]:g}]"
+                + (f" (K_P = b ω_n², K_D = 2ζ b ω_n{inertia})" if self.inertia else "")
             )
         return (
             "per joint K_P log-uniform in b_i·[ω_lo², ω_hi²], K_D log-uniform in "
             f"b_i·[2ζ_lo ω_lo, 2ζ_hi ω_hi], ω in [{self.omega_n[0]:g}, {self.omega_n[1]:g}] "
-            f"rad/s, ζ in [{self.zeta[0]:g}, {self.zeta[1]:g}], b = "
-            + ", ".join(f"{x:.4g}" for x in self.scale)
+            f"rad/s, ζ in [{self.zeta[0]:g}, {self.zeta[1]:g}]{inertia}"
         )

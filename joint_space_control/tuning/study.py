@@ -183,12 +183,16 @@ def run_trials(
     in_flight: int,
     log: Callable[[str], None] = print,
     batch: int = BATCH,
+    plan: Callable[[optuna.Study], None] | None = None,
 ) -> int:
     """Run the study to ``trials`` finished trials, ``batch`` at a time (see the module's
     docstring): ask the batch's trials, run them ``in_flight`` at a time, then tell them in
     trial-number order; how many this call finished. Whatever stops it (KeyboardInterrupt:
     the caller then cancels its pool) the batch's runs that finished are still told, in
-    order, the others failed and marked ``interrupted``, and the exception propagates."""
+    order, the others failed and marked ``interrupted``, and the exception propagates.
+    ``plan(study)``, called before each batch is asked, may enqueue trials from the ones
+    told (the asks take enqueued trials first): a function of the study's contents, so the
+    study stays reproducible."""
     if batch < 1:
         raise ValueError(f"the batch must be >= 1 trial, got {batch}")
     finished = sum(is_finished(t) for t in study.trials)
@@ -209,6 +213,8 @@ def run_trials(
     try:
         while finished < trials:
             runs = []
+            if plan is not None:
+                plan(study)
             for _ in range(min(batch, trials - finished)):
                 trial = study.ask(distributions)
                 # in the batch before it is prepared: failed if preparing it fails
