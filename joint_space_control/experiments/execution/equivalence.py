@@ -21,6 +21,7 @@ from typing import Any
 RECORDING_KEYS = frozenset(
     {
         "bag",
+        "storage",
         "start_time_ns",
         "duration_s",
         "message_count",
