@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from joint_space_control.model.robots import EXAMPLE_ROBOTS, example_robot
+from joint_space_control.model.robots import EXAMPLE_ROBOTS, builtin_robots, example_robot
 from joint_space_control.simulation.response import Response
 from joint_space_control.simulation.world import Arm, LoopError, World
 
@@ -46,15 +46,15 @@ class Change:
 
 def robot_parameters(robot: str | os.PathLike | Mapping[str, Any]) -> dict[str, Any]:
     """The robot parameters every node takes for ``robot``: a built-in name (``planar_2dof``,
-    ``iiwa``, ``panda``), an arm of example-robot-data by its short name (``ur5``, ``z1``,
-    ...: :data:`~joint_space_control.model.robots.EXAMPLE_ROBOTS`), a ``.urdf``/``.xacro``
-    file, or the parameters themselves (``urdf_path``, ``package_paths``, ``xacro_args``,
-    ``robot_description``, ``joints``, ``effort_limits``)."""
+    ``iiwa``, ``panda``), else an arm of example-robot-data by its short name (``ur5``,
+    ``z1``, ...: :data:`~joint_space_control.model.robots.EXAMPLE_ROBOTS`), a
+    ``.urdf``/``.xacro`` file, or the parameters themselves (``urdf_path``,
+    ``package_paths``, ``xacro_args``, ``robot_description``, ``joints``, ``effort_limits``)."""
     if isinstance(robot, Mapping):
         return dict(robot)
     if isinstance(robot, os.PathLike) or str(robot).endswith((".urdf", ".xacro")):
         return {"urdf_path": str(Path(robot))}
-    if robot in EXAMPLE_ROBOTS:
+    if robot in EXAMPLE_ROBOTS and robot not in builtin_robots():
         return example_robot(str(robot))
     return {"robot": str(robot)}
 
