@@ -128,30 +128,65 @@ def law_timings(robot: str, law: str, ticks: int, seed: int = 0) -> dict[str, An
 
 
 def in_process_loop(robot: str, law: str, steps: int) -> dict[str, Any]:
-    """The lockstep loop of the in-process engine (:mod:`joint_space_control.experiments.
-    inprocess`: sim_bridge's plant and sub-step loop, the controller object, no ROS, no
-    bag): steps per second of measure → controller step → physics step (1 kHz), a 0.3 rad
-    step on every joint."""
-    from joint_space_control.experiments.execution.inprocess import InProcessLoop  # pybullet
-    from joint_space_control.experiments.scenarios.format import RobotSetup
+    """The lockstep loop in one process (:class:`~joint_space_control.simulation.World`:
+    sim_bridge's plant and sub-step loop, the controller's policy, no ROS, no bag): steps per
+    second of measure → controller step → physics step (1 kHz), a 0.3 rad step on every
+    joint."""
+    from joint_space_control.simulation import Arm, World  # pybullet
 
-    setup = RobotSetup("", robot, {}, LAWS[law], BENCH_PARAMETERS[law], {})
-    loop = InProcessLoop([setup], {})
-    try:
-        joints = loop.controllers[0].joints
-        loop.send_reference("", joints, [[0.3] * len(joints)], [0.0])
-        loop.run_until(0.0)  # the first state answered: imports, first-call set-up
-        period = loop.period_ns * 1e-9
-        per_step = time_each(lambda k: loop.run_until((k + 1) * period), steps)
+    with World([Arm("", robot, LAWS[law], BENCH_PARAMETERS[law])]) as world:
+        joints = world.controllers[0].joints
+        world.send_reference("", joints, [[0.3] * len(joints)], [0.0])
+        world.run_until(0.0)  # the first state answered: imports, first-call set-up
+        period = world.period_ns * 1e-9
+        per_step = time_each(lambda k: world.run_until((k + 1) * period), steps)
         elapsed = sum(per_step) * 1e-9
-    finally:
-        loop.close()
     return {
         "robot": robot,
         "law": law,
         "steps": steps,
         "steps_per_s": steps / elapsed,
         "per_step": percentiles_us(per_step),
+    }
+
+
+def simulate_call(
+    robot: str, law: str, engine: str, seconds: float, repeats: int
+) -> dict[str, Any]:
+    """``simulate()`` as a user calls it: ``seconds`` of simulated time of ``robot`` under
+    ``law`` (a 0.2 rad step on every joint, 1 kHz) on the plant ``engine``, with its
+    ``Response`` and the step's metrics (``step_info``); the median of ``repeats`` calls,
+    split into building the world, the loop and the response with its metrics. A sweep of
+    such runs in one process gets ``runs_per_minute`` through."""
+    from joint_space_control.simulation import Arm, World  # pybullet
+
+    def once() -> tuple[float, float, float]:
+        t0 = time.perf_counter()
+        with World([Arm("", robot, LAWS[law], BENCH_PARAMETERS[law])], {"engine": engine}) as w:
+            joints = w.controllers[0].joints
+            w.send_reference("", joints, [[0.2] * len(joints)], [0.0])
+            t1 = time.perf_counter()
+            w.run_until(seconds)
+            t2 = time.perf_counter()
+            w.response().step_info()
+            t3 = time.perf_counter()
+        return t1 - t0, t2 - t1, t3 - t2
+
+    once()  # imports, the description parsed once
+    rows = np.array([once() for _ in range(repeats)])
+    build, loop, response = (float(np.median(rows[:, k])) for k in range(3))
+    total = float(np.median(rows.sum(axis=1)))
+    return {
+        "robot": robot,
+        "law": law,
+        "engine": engine,
+        "seconds": seconds,
+        "repeats": repeats,
+        "total_ms": total * 1e3,
+        "build_ms": build * 1e3,
+        "loop_ms": loop * 1e3,
+        "response_ms": response * 1e3,
+        "runs_per_minute": 60.0 / total,
     }
 
 

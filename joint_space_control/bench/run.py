@@ -1,8 +1,10 @@
 """``jsc bench``: every benchmark in one run, a table on stdout and ``bench.json``.
 
 Sections (all by default): ``compute`` (laws and Pinocchio calls per tick, no ROS),
-``in_process`` (plant + law in one process, no ROS), ``physics`` (one physics step of the
-plant per robot and engine, PyBullet and MuJoCo, in process), ``pingpong`` (plain rclpy),
+``in_process`` (plant + law in one process, no ROS), ``simulate`` (``simulate()`` of 1 s
+of the iiwa under inverse dynamics with its Response and metrics, on each engine),
+``physics`` (one physics step of the plant per robot and engine, PyBullet and MuJoCo, in
+process), ``pingpong`` (plain rclpy),
 ``lockstep`` (sim_bridge + controller over ROS 2; the bench's own loop also with
 ``engine:=mujoco``), ``realtime`` (1 kHz on the wall clock, with the
 machine's floor: a bare Python thread paced the same way), ``analyze`` (``jsc analyze``
@@ -36,6 +38,7 @@ from joint_space_control.json_values import jsonable
 SECTIONS = (
     "compute",
     "in_process",
+    "simulate",
     "physics",
     "pingpong",
     "lockstep",
@@ -80,6 +83,7 @@ class Options:
 
     ticks: int = 20_000  # law timings per (robot, law)
     in_process_steps: int = 5_000
+    simulate_repeats: int = 7  # simulate() calls of 1 s per (engine): the median
     physics_steps: int = 2_000  # physics steps per (robot, engine) in each of physics_repeats
     physics_repeats: int = 5
     pingpong_seconds: float = 6.0
@@ -107,6 +111,7 @@ class Options:
         return cls(
             ticks=1000,
             in_process_steps=500,
+            simulate_repeats=2,
             physics_steps=500,
             physics_repeats=3,
             pingpong_seconds=0.5,
@@ -171,6 +176,18 @@ def run(
                 compute.in_process_loop(robot, law, options.in_process_steps)
                 for robot in ROBOTS
                 for law in LAWS
+            ],
+        )
+    if "simulate" in sections:
+        log("simulate: 1 s of the iiwa under inverse dynamics with its Response, per engine")
+        result["simulate"] = measured(
+            "simulate",
+            lambda: [
+                compute.simulate_call(
+                    "iiwa", "inverse_dynamics", engine, 1.0, options.simulate_repeats
+                )
+                for engine in ENGINES
+                if compute.engine_missing(engine) is None
             ],
         )
     if "physics" in sections:
@@ -586,6 +603,17 @@ def format_table(result: dict[str, Any]) -> str:
                 f" {_f(row['law_per_tick']['p99_us'], 1):>9}"
                 f" {_f(row['pinocchio_per_tick']['p50_us'], 1):>15}"
                 f" {_f(row['pinocchio_per_tick']['p99_us'], 1):>5}"
+            )
+        lines.append("")
+    if result.get("simulate"):
+        lines.append(
+            "simulate() 1 s, iiwa, inverse dynamics   total [ms]  build  loop  response  runs/min"
+        )
+        for row in result["simulate"]:
+            lines.append(
+                f"  {row['engine']:36s} {_f(row['total_ms'], 1):>10} {_f(row['build_ms'], 1):>6}"
+                f" {_f(row['loop_ms'], 1):>5} {_f(row['response_ms'], 1):>9}"
+                f" {_f(row['runs_per_minute']):>9}"
             )
         lines.append("")
     if "physics" in result:

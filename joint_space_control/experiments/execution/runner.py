@@ -165,9 +165,9 @@ def run_scenario(
 ) -> list[RunResult]:
     """Every run of ``scenario`` (one, or one per variant), each a task of ``pool`` (None:
     two threads of this process): a result per run, or per robot of each run in a world of
-    several, in the scenario's order. A run whose task failed twice (its worker died) is a
-    result with that error. Ctrl-C cancels the runs of a pool made here; a caller's pool is
-    the caller's to cancel."""
+    several, in the scenario's order; only the last run's report draws figures. A run whose
+    task failed twice (its worker died) is a result with that error. Ctrl-C cancels the runs
+    of a pool made here; a caller's pool is the caller's to cancel."""
     runs = scenario.runs(short)
     out = out.absolute()  # the same path on every worker (a shared file system)
     out.mkdir(parents=True, exist_ok=True)
@@ -176,9 +176,13 @@ def run_scenario(
         pool = RunPool(2, "threads", log)
     try:
         futures = {}
-        for label, run in runs:
+        for k, (label, run) in enumerate(runs):
             target = out if len(runs) == 1 else out / _safe(label)
-            task = pool.submit(run.name, execute_run, run, target, short, engine, True, record)
+            # figures where they are shown: of a sweep, the last run's (the results page
+            # shows the sweep's own figures and that run's positions); the other runs'
+            # reports have their metrics
+            shown = k == len(runs) - 1
+            task = pool.submit(run.name, execute_run, run, target, short, engine, shown, record)
             futures[task] = (
                 label,
                 run,
