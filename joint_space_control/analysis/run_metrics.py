@@ -352,18 +352,24 @@ def _prediction(
         return None
 
 
-def _step(
+def step_response(
     state: ControllerState,
     seg: StepSegment,
     configs: Sequence[tuple[int, dict]],
     warnings: list[str],
+    predict: bool = True,
 ) -> dict:
+    """The step response of the segment ``seg`` per joint (a moving joint's rise, settling
+    and overshoot, with the second-order prediction of the configuration in force when
+    ``predict``; a joint the step does not move: how far the others moved it)."""
     t = state.stamp[seg.start : seg.stop]
     q = state.rows["q"][seg.start : seg.stop]
     target = state.rows["q_d"][seg.start]
     measured = metrics.step_metrics_per_joint(t, q, target, t_step=float(t[0]))
-    config = config_at(configs, int(state.log_time[seg.start]))
-    prediction = _prediction(config, state.joints, warnings)
+    prediction = None
+    if predict:
+        config = config_at(configs, int(state.log_time[seg.start]))
+        prediction = _prediction(config, state.joints, warnings)
     joints = {}
     for j, name in enumerate(state.joints):
         m = measured[j]
@@ -571,7 +577,7 @@ def controller_metrics(
     joints = state.joints
     t, q, q_d = state.stamp, state.rows["q"], state.rows["q_d"]
     steps = [
-        _step(state, seg, configs, warnings)
+        step_response(state, seg, configs, warnings)
         for seg in step_segments(t, q_d, q, state.rows.get("dq_d"))
     ]
     second_order = _prediction(config, joints, warnings)

@@ -22,7 +22,11 @@ import numpy as np
 
 from joint_space_control.analysis.bag import ControllerState
 from joint_space_control.analysis.figures import controller_figures
-from joint_space_control.analysis.run_metrics import controller_analysis
+from joint_space_control.analysis.run_metrics import (
+    controller_analysis,
+    step_response,
+    step_segments,
+)
 from joint_space_control.control.controller import STATE_FIELDS
 
 if TYPE_CHECKING:
@@ -196,14 +200,15 @@ class Response:
     def step_info(self, step: int = 0) -> dict[str, dict[str, float]]:
         """The step response of each joint the ``step``-th step of q_d moves (0: the first,
         -1: the last): rise time (10-90 %), settling times to 2 % and 5 %, overshoot [%],
-        final value and steady-state error, as the analysis measures them."""
-        steps = self.metrics()["steps"]
-        if not steps:
+        final value and steady-state error, measured as :meth:`metrics` measures them."""
+        rows = self.steps.rows
+        segments = step_segments(self.steps.stamp, rows["q_d"], rows["q"], rows.get("dq_d"))
+        if not segments:
             raise ValueError("the reference has no step to measure")
-        joints = steps[step]["joints"]
+        joints = step_response(self.steps, segments[step], self.configs, [], predict=False)
         return {
             name: {k: entry[k] for k in STEP_INFO if k in entry}
-            for name, entry in joints.items()
+            for name, entry in joints["joints"].items()
             if entry["moving"]
         }
 
