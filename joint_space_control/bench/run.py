@@ -502,10 +502,15 @@ def goals(result: dict[str, Any]) -> list[dict[str, Any]]:
             lambda v: v == 0,
         ),
         goal(
-            "sweep of 1 s runs in process, 1 worker: >= 70 runs/min (issue 25: 10x the 7 of "
-            "the ROS engine)",
+            "sweep of 1 s runs in process with their metrics, 1 worker: >= 300 runs/min",
             _sweep_rate(result.get("sweep"), "inprocess", 1),
-            lambda v: v >= 70.0,
+            lambda v: v >= 300.0,
+        ),
+        goal(
+            "simulate() of 1 s of the iiwa under inverse dynamics with its Response: <= 60 ms "
+            "(the slower engine)",
+            max((r["total_ms"] for r in result.get("simulate") or []), default=None),
+            lambda v: v <= 60.0,
         ),
         *(goal(*row) for row in dashboard_goals(result.get("dashboard"))),
     ]

@@ -31,6 +31,9 @@ from joint_space_control.experiments.scenarios.format import Scenario, parse
 
 #: The phases of a run, in order (runner.run_once).
 PHASES = ("start", "run", "stop", "analysis")
+#: Runs of the in-process sweep per run of the ROS one: its runs take a tenth of a second,
+#: so that a worker's first imports and the last run's figures weigh as in a real sweep.
+INPROCESS_RUNS = 5
 #: The swept natural frequencies [rad/s] (as many as the sweep has runs, cycled).
 OMEGAS = (6.0, 8.0, 10.0, 12.0, 14.0, 16.0)
 
@@ -79,11 +82,13 @@ def throughput(
     row each (runs per minute, the phases of a run, CPU use), the rate of the last over the
     first per engine (``speedups``; ``speedup``: the first engine's), and with both engines
     the in-process rate over the ROS one on the same workers (``inprocess_over_ros``)."""
-    scenario = sweep_scenario(runs, duration)
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     cores = cores or 1
     rows = []
+    asked = runs
     for engine, n in [(e, n) for e in engines for n in workers]:
+        runs = asked * (INPROCESS_RUNS if engine == "inprocess" else 1)
+        scenario = sweep_scenario(runs, duration)
         target = out / f"{engine}_workers_{n}"
         shutil.rmtree(target, ignore_errors=True)
         log(f"sweep: {runs} runs of {duration:g} s, {engine} engine, {n} worker(s)")
@@ -149,16 +154,17 @@ def format_sweep(sweep: dict[str, Any]) -> list[str]:
     rows = sweep["rows"]
     first = rows[0]
     lines = [
-        f"sweep on a Dask LocalCluster: {first['runs']} runs of {first['simulated_s']:g} s "
-        f"simulated, {sweep['robot']} {sweep['law']}, lockstep ({sweep['cores']} cores)",
-        "     engine  workers  runs/min  worker s/run   start    run   stop  analysis  other  "
-        "CPU s/run  CPU cores used  machine busy  failed",
+        f"sweep on a Dask LocalCluster: runs of {first['simulated_s']:g} s simulated, "
+        f"{sweep['robot']} {sweep['law']}, lockstep ({sweep['cores']} cores)",
+        "     engine  workers  runs  runs/min  worker s/run   start    run   stop  analysis  "
+        "other  CPU s/run  CPU cores used  machine busy  failed",
     ]
     for row in rows:
         p = row["phases_s"]
         busy = row["machine_busy_fraction"]
         lines.append(
-            f"  {row.get('engine', 'ros'):>9}  {row['workers']:>7}  {row['runs_per_minute']:>8.1f}"
+            f"  {row.get('engine', 'ros'):>9}  {row['workers']:>7}  {row['runs']:>4}"
+            f"  {row['runs_per_minute']:>8.1f}"
             f"  {row['worker_seconds_per_run']:>12.1f}"
             f"  {p['start']:>6.1f} {p['run']:>6.1f} {p['stop']:>6.1f} {p['analysis']:>9.1f}"
             f"  {row['other_s']:>5.1f}  {row['cpu_seconds_per_run']:>9.1f}"

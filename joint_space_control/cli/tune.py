@@ -77,7 +77,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--scheduler",
         default=None,
-        help="a Dask scheduler tcp://HOST:PORT, or 'threads' (default: a local cluster)",
+        help="a Dask scheduler tcp://HOST:PORT, or 'threads' (default: threads with "
+        "--engine inprocess, a local cluster with --engine ros)",
     )
     p.add_argument(
         "--out", type=Path, default=None, help="output directory (out/tune/<robot>_<controller>)"
@@ -231,8 +232,11 @@ def run(
         f"tuning {problem.controller} on {problem.robot}: {problem.spec}; "
         f"{prepared.space.describe()}; {options.trials} trials -> {prepared.out}"
     )
+    scheduler = options.scheduler
+    if scheduler is None and options.engine == "inprocess":
+        scheduler = "threads"  # trials of a fraction of a second: no cluster to start
     try:
-        pool = pool_class(options.jobs, options.scheduler, log)
+        pool = pool_class(options.jobs, scheduler, log)
     except ValueError as err:  # a bad scheduler address, say
         return _fail(err)
     except KeyboardInterrupt:

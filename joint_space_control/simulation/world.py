@@ -263,7 +263,9 @@ class World:
 
     def _publish_and_answer(self) -> list[np.ndarray]:
         """Every robot's state at the current time, measured and kept, and each
-        controller's answer to it."""
+        controller's answer to it (the items logged in the order the nodes publish them:
+        the clock, each robot's true and measured state, then each controller's command,
+        state and configuration)."""
         t_ns, log = self.t_ns, self.log
         self.clock.append((t_ns, log(t_ns)))
         measured = []
@@ -271,36 +273,31 @@ class World:
             self.robots, self.records, self._buffers, strict=True
         ):
             robot.measure(t_ns, q, dq, effort)
-            if not robot.exact:  # the true state is published before the measured one
+            if not robot.exact:
                 truth = (robot.true_position.copy(), robot.true_velocity.copy(), log(t_ns))
                 record.truth.append(truth)
-            measured.append((q.copy(), dq.copy()))
-            record.states.append(
-                (t_ns, log(t_ns), measured[-1][0], measured[-1][1], effort.copy())
-            )
-        return [
-            self._answer(controlled, record, t_ns, q, dq)
-            for controlled, record, (q, dq) in zip(
-                self.controllers, self.records, measured, strict=True
-            )
-        ]
-
-    def _answer(
-        self, controlled: Controlled, record: Record, t_ns: int, q: np.ndarray, dq: np.ndarray
-    ) -> np.ndarray:
-        answer = controlled.policy.answer(t_ns, q, dq)
-        if answer.tau is None:
-            raise LoopError(
-                f"{controlled.node}: no command: {answer.reason} (the lockstep plant would "
-                "wait for ever)"
-            )
-        command_log = self.log(t_ns)
-        if answer.kind is Kind.COMPUTED:
-            record.steps.append((t_ns, self.log(t_ns), state_row(answer.step)))
-        record.commands.append((answer.tau, len(record.steps) - 1, command_log))
-        if answer.designed:
-            record.configs.append((self.log(t_ns), controlled.config()))
-        return answer.tau
+            state = (t_ns, log(t_ns), q.copy(), dq.copy(), effort.copy())
+            record.states.append(state)
+            measured.append(state)
+        answers = []
+        for controlled, record, state in zip(
+            self.controllers, self.records, measured, strict=True
+        ):
+            answer = controlled.policy.answer(t_ns, state[2], state[3])
+            tau = answer.tau
+            if tau is None:
+                raise LoopError(
+                    f"{controlled.node}: no command: {answer.reason} (the lockstep plant "
+                    "would wait for ever)"
+                )
+            command_log = log(t_ns)
+            if answer.kind is Kind.COMPUTED:
+                record.steps.append((t_ns, log(t_ns), state_row(answer.step)))
+            record.commands.append((tau, len(record.steps) - 1, command_log))
+            if answer.designed:
+                record.configs.append((log(t_ns), controlled.config()))
+            answers.append(tau)
+        return answers
 
     # -- reading -----------------------------------------------------------------------
     def positions(self, name: str = "") -> np.ndarray:
