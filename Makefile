@@ -56,7 +56,7 @@ $(STAMP): setup.py setup.cfg
 	fi; \
 	echo "venv: installing the package and its dependencies (log: $$log)"; \
 	step $(PY) -m pip install --upgrade pip; \
-	step $(PY) -m pip install -e '.[pypi,test]'; \
+	step $(PY) -m pip install -e '.[pypi,workbench,lab,test]'; \
 	for exe in $(VENV_SCRIPTS); do \
 	  test -x $(VENV)/bin/$$exe || { \
 	    echo "error: $(VENV)/bin/$$exe missing after pip install -e (scripts redirected?)" >&2; \

@@ -49,11 +49,6 @@ PYPI_REQUIRES = [
     "yourdfpy>=0.0.56,<0.1",
     "lxml>=4.9,<7",
     "xacro>=2,<3",
-    # Sweeps and tuning trials as tasks on a cluster (experiments/execution/distributed.py): a
-    # LocalCluster by default, or any dask.distributed scheduler (SLURM/PBS: dask-jobqueue).
-    "dask[distributed]>=2024.8",
-    # `jsc tune`: TPE studies with constraints, resumable from an RDB (SQLite) file.
-    "optuna>=4,<6",
     # The dashboard's web page: viser ships its built web client inside its wheel, so the
     # page works with no internet; 3D robots from a URDF (viser.extras.ViserUrdf, on
     # yourdfpy), uPlot plots and GUI controls.
@@ -61,6 +56,18 @@ PYPI_REQUIRES = [
 ]
 
 # Test, lint and build-check tools (`make test`, `make colcon-check`, .ci/run).
+# The workbench (`jsc experiment`, `jsc tune`) and the lab (`jsc bench`, `jsc soak`): what the
+# product alone (the nodes, simulate(), jsc demo/analyze/view/recover) does not need.
+WORKBENCH_REQUIRES = [
+    # Sweeps and tuning trials as tasks on a cluster (workbench/experiments/execution/
+    # distributed.py): a LocalCluster, or any dask.distributed scheduler (SLURM/PBS:
+    # dask-jobqueue).
+    "dask[distributed]>=2024.8",
+    # `jsc tune`: TPE studies with constraints, resumable from an RDB (SQLite) file.
+    "optuna>=4,<6",
+]
+LAB_REQUIRES = WORKBENCH_REQUIRES  # the bench's sweep runs on the workbench's pool
+
 TEST_REQUIRES = [
     "pytest>=8,<10",
     "pytest-timeout>=2.2,<3",
@@ -95,7 +102,7 @@ setup(
     package_data={
         PACKAGE_NAME: ["config/*.yaml", "config/experiments/*.yaml"],
         f"{PACKAGE_NAME}.robots": ["urdf/*.urdf"],
-        f"{PACKAGE_NAME}.experiments.harness": ["*.xml"],
+        f"{PACKAGE_NAME}.processes": ["*.xml"],
     },
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE_NAME}"]),
@@ -105,7 +112,12 @@ setup(
         (f"share/{PACKAGE_NAME}/urdf", sorted(glob(f"{PACKAGE_NAME}/robots/urdf/*.urdf"))),
     ],
     install_requires=["setuptools"],
-    extras_require={"pypi": PYPI_REQUIRES, "test": TEST_REQUIRES},
+    extras_require={
+        "pypi": PYPI_REQUIRES,
+        "workbench": WORKBENCH_REQUIRES,
+        "lab": LAB_REQUIRES,
+        "test": TEST_REQUIRES,
+    },
     # The URDFs and scenario files are handed to PyBullet, Pinocchio and node processes as
     # file names: they must be real files, never inside a zipped egg.
     zip_safe=False,

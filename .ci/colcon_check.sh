@@ -76,7 +76,7 @@ if [[ -x "$PY" ]]; then
   (cd "$WS" && env -u AMENT_PREFIX_PATH PYTHONPATH="${site[0]}" "$PY" -c '
 import sys
 import joint_space_control
-from joint_space_control.experiments.scenarios.format import available
+from joint_space_control.workbench.experiments.scenarios.format import available
 site = sys.argv[1]
 assert joint_space_control.__file__.startswith(site), joint_space_control.__file__
 found = available()

@@ -124,14 +124,34 @@ check() {
 check import 60 python -c 'import sys, joint_space_control as j, sim_bridge as s
 bad = [m.__file__ for m in (j, s) if not m.__file__.startswith(sys.prefix)]
 sys.exit(f"imported from outside the venv: {bad}" if bad else 0)'
+# The product alone: no cluster scheduler, no optimiser; the workbench's commands say what
+# they need in one line.
+if "$VENV/bin/python" -c 'import importlib.util as u, sys; sys.exit(any(u.find_spec(m) for m in ("dask", "optuna")))'; then
+  echo "wheel-check:   ok: [pypi] installs neither dask nor optuna"
+else
+  fail "pip install $WHEEL[pypi] installed dask or optuna (the workbench's)"
+fi
+check simulate 120 python -c 'from joint_space_control.simulation import simulate
+r = simulate("planar_2dof", "pd_gravity", target=[0.5, -0.3], duration=2.0)
+assert abs(r.q[-1] - [0.5, -0.3]).max() < 1e-3, r.q[-1]'
+check demo 300 jsc demo --out "$RUN/demo"
+[[ -f "$RUN/demo/report/report.md" ]] || fail "jsc demo wrote no report"
+if (cd "$RUN" && "$VENV/bin/jsc" tune planar_2dof --controller pd_gravity --spec "overshoot<=5" \
+  >"$RUN/tune-without-extra.log" 2>&1); then
+  fail "jsc tune ran without the workbench extra"
+fi
+grep -q "needs the workbench extra" "$RUN/tune-without-extra.log" \
+  || fail "jsc tune without the workbench extra: no one-line reason ($RUN/tune-without-extra.log)"
+echo "wheel-check: installing the workbench extra ($(basename "$WHEEL")[pypi,workbench])"
+"$VENV/bin/python" -m pip install "$WHEEL[pypi,workbench]" >>"$OUT/pip.log" 2>&1 \
+  || { tail -n 40 "$OUT/pip.log" >&2; fail "pip install $WHEEL[pypi,workbench]"; }
 check list 120 jsc experiment --list
 grep -q '^q6_inverse_dynamics_nominal ' "$RUN/list.log" || fail "jsc experiment --list: no q6"
 if grep -q INVALID "$RUN/list.log"; then fail "jsc experiment --list: invalid scenarios"; fi
-check demo 300 jsc demo --out "$RUN/demo"
-[[ -f "$RUN/demo/report/report.md" ]] || fail "jsc demo wrote no report"
 check experiment 600 jsc experiment q6_inverse_dynamics_nominal --out "$RUN/experiments"
 [[ -f "$RUN/experiments/q6_inverse_dynamics_nominal/summary.md" ]] \
   || fail "jsc experiment wrote no summary"
 
-echo "wheel-check: OK ($(basename "$WHEEL"): import, experiment --list, demo, experiment" \
+echo "wheel-check: OK ($(basename "$WHEEL"): import, [pypi] without dask/optuna, simulate(), tune" \
+  "refused without its extra, experiment --list, demo, experiment" \
   "q6_inverse_dynamics_nominal, from $RUN; $((SECONDS - started)) s)"

@@ -123,6 +123,91 @@ CLOCK_REFUSAL = 5.0
 CLOCK_ANSWER = 3.0
 #: ... and by how much [ns] the other's time must be ahead of its own.
 CLOCK_AHEAD_NS = 200_000_000
+#: What the node publishes, subscribes to and serves: (kind, relative name, type, meaning),
+#: rendered into docs/reference by joint_space_control.nodes.reference. With ``robots``
+#: each robot's topics and ``~/release`` are in its namespace (``<robot>/joint_states``,
+#: ``<robot>/sim_bridge/wrench``, ...); ``/clock`` and the other services are the world's.
+INTERFACE = (
+    (
+        "publishes",
+        "joint_states",
+        "sensor_msgs/msg/JointState",
+        "position [rad], velocity [rad/s] (empty with `measure_velocity: false`), effort = "
+        "the torque applied during the last step [N·m]; stamp = simulation time",
+    ),
+    (
+        "publishes",
+        "~/true_joint_states",
+        "sensor_msgs/msg/JointState",
+        "the true state beside an imperfect measurement (noise, quantization, no velocity), "
+        "while it has a subscriber",
+    ),
+    (
+        "publishes",
+        "/clock",
+        "rosgraph_msgs/msg/Clock",
+        "simulation time, every published state; one publisher per ROS domain",
+    ),
+    (
+        "publishes",
+        "/diagnostics",
+        "diagnostic_msgs/msg/DiagnosticArray",
+        "loop statistics, the owner, the brakes and the safety counters, once a second",
+    ),
+    (
+        "subscribes",
+        "effort_command",
+        "sensor_msgs/msg/JointState",
+        "effort [N·m] by joint name, any order; `header.frame_id` names the commander (one "
+        "at a time); lockstep: the stamp is that of the state answered",
+    ),
+    (
+        "subscribes",
+        "~/commands",
+        "std_msgs/msg/Float64MultiArray",
+        "effort [N·m] in the robot's joint order, as ros2_control's forward command "
+        "controller sends it (a commander of its own)",
+    ),
+    (
+        "subscribes",
+        "~/wrench",
+        "geometry_msgs/msg/WrenchStamped",
+        "an external wrench on the link `header.frame_id` names, world frame, at the link "
+        "frame's origin; held until the next one (zero removes it)",
+    ),
+    (
+        "subscribes",
+        "robot_description",
+        "std_msgs/msg/String",
+        "only with `robot:=topic`: the URDF text, latched (transient local)",
+    ),
+    (
+        "subscribes",
+        "/clock",
+        "rosgraph_msgs/msg/Clock",
+        "only in its first seconds, while another node publishes /clock: a simulator "
+        "already running in the domain makes this one refuse to start",
+    ),
+    (
+        "serves",
+        "~/reset",
+        "std_srvs/srv/Trigger",
+        "every robot back to its initial configuration, at rest; time runs on",
+    ),
+    (
+        "serves",
+        "~/pause",
+        "std_srvs/srv/Trigger",
+        "stop stepping; answers `paused; last state stamped <ns> ns`",
+    ),
+    ("serves", "~/resume", "std_srvs/srv/Trigger", "step again; answers `running`"),
+    (
+        "serves",
+        "~/release",
+        "std_srvs/srv/Trigger",
+        "free the plant from its commander: the next valid command claims it",
+    ),
+)
 
 
 class SimBridge(Node):

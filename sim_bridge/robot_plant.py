@@ -2,7 +2,8 @@
 
 ``sim_bridge`` (:mod:`sim_bridge.robot`) wraps each robot of its world in one of these and
 adds the topics, the commander and the brakes; the experiments' in-process engine
-(:mod:`joint_space_control.experiments.execution.inprocess`) runs the same object in the same
+(:mod:`joint_space_control.workbench.experiments.execution.inprocess`) runs the same object in the
+same
 world, so the two give the same numbers. From the robot's values (:mod:`sim_bridge.parameters`):
 the description and joints (the model every node builds), the plant with its friction,
 payload, torque-rate limit and scheduled wrench, where it stands in the world, and the

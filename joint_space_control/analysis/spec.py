@@ -2,7 +2,8 @@ r"""Step-response specifications: ``"overshoot<=5, settling_2pct<=0.8"`` parsed,
 a controller's metrics (``jsc analyze``'s ``metrics.json``, :mod:`.run_metrics`) and judged.
 
 One place for ``jsc tune`` (the constraints of its study) and the ``spec`` check of
-``jsc experiment`` (experiments/judging/theory.py), so that what was tuned is what is confirmed.
+``jsc experiment`` (workbench/experiments/judging/theory.py), so that what was tuned is what is
+confirmed.
 Pure: strings and metric dictionaries in, numbers out.
 
 A specification is a comma-separated list of clauses ``metric<=value`` or ``metric>=value``.

@@ -47,8 +47,8 @@ def run(
     browser_nice: int = 0,
 ) -> int:
     # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
-    from joint_space_control.bench.run import SECTIONS, Options, format_table
-    from joint_space_control.bench.run import run as run_bench
+    from joint_space_control.lab.bench.run import SECTIONS, Options, format_table
+    from joint_space_control.lab.bench.run import run as run_bench
 
     sections = sections or list(SECTIONS)
     unknown = [s for s in sections if s not in SECTIONS]

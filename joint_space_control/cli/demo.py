@@ -1,6 +1,6 @@
 """``jsc demo``: run the default closed loop (planar_2dof, PD + g(q), a step) headless and
 analyse its bag into a report, as a user would with the recorder and ``jsc analyze``
-(wiring and printing only; the run is :mod:`joint_space_control.experiments.demo`)."""
+(wiring and printing only; the run is :mod:`joint_space_control.processes.demo`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from joint_space_control.cli import analyze
-from joint_space_control.experiments.demo import run_demo, run_view_demo
+from joint_space_control.processes.demo import run_demo, run_view_demo
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -9,8 +9,8 @@ import threading
 import time
 from pathlib import Path
 
-from joint_space_control.experiments.scenarios import format as scenarios
-from joint_space_control.experiments.scenarios.params_file import with_params_file
+from joint_space_control.workbench.experiments.scenarios import format as scenarios
+from joint_space_control.workbench.experiments.scenarios.params_file import with_params_file
 from sim_bridge.engines import ENGINES
 
 
@@ -131,9 +131,12 @@ def run(
     whole sweep (no node or worker process is left) and exits with 130."""
     # deferred: the library (ROS, Pinocchio, Dask) loads only for this command, not for
     # `jsc --help`
-    from joint_space_control.experiments.execution.distributed import RunPool
-    from joint_space_control.experiments.experiment import ExperimentResult, run_experiment
-    from joint_space_control.experiments.presentation.results import results_page
+    from joint_space_control.workbench.experiments.execution.distributed import RunPool
+    from joint_space_control.workbench.experiments.experiment import (
+        ExperimentResult,
+        run_experiment,
+    )
+    from joint_space_control.workbench.experiments.presentation.results import results_page
 
     def error(message: str) -> int:
         print(f"jsc experiment: error: {message}", file=sys.stderr)

@@ -137,8 +137,8 @@ def format_report(report: dict[str, Any]) -> str:
 
 def run(out: Path, minutes: float, robot: str, law: str, rate: float = 1000.0) -> int:
     # deferred: the library (ROS, Pinocchio) loads only for this command, not for `jsc --help`
-    from joint_space_control.experiments.soak import CONTROLLERS, SoakOptions
-    from joint_space_control.experiments.soak import run as run_soak
+    from joint_space_control.lab.soaks.soak import CONTROLLERS, SoakOptions
+    from joint_space_control.lab.soaks.soak import run as run_soak
 
     if law not in CONTROLLERS:
         print(f"jsc soak: error: unknown controller '{law}'", file=sys.stderr)
@@ -221,8 +221,8 @@ def run_faults(
     law: str,
     rate: float = 1000.0,
 ) -> int:
-    from joint_space_control.experiments.fault_soak import FaultSoakOptions
-    from joint_space_control.experiments.fault_soak import run as run_fault_soak
+    from joint_space_control.lab.soaks.fault_soak import FaultSoakOptions
+    from joint_space_control.lab.soaks.fault_soak import run as run_fault_soak
 
     if minutes <= 0 or period <= 0 or minutes * 60.0 < 1.5 * period:
         print(

@@ -1,5 +1,5 @@
 """``jsc tune``: gains that meet a step-response specification, found by an Optuna study
-whose trials are lockstep runs on a pool of workers (wiring only: tuning/)."""
+whose trials are lockstep runs on a pool of workers (wiring only: workbench/tuning/)."""
 
 from __future__ import annotations
 
@@ -14,9 +14,18 @@ from pathlib import Path
 from typing import Any
 
 from joint_space_control.analysis.spec import allowed
-from joint_space_control.tuning.problem import CONTROLLERS, DEFAULT_DURATION, DEFAULT_STEP
-from joint_space_control.tuning.space import GAINS, OMEGA_N_RANGE, ZETA_RANGE, parse_range
-from joint_space_control.tuning.study import BATCH
+from joint_space_control.workbench.tuning.problem import (
+    CONTROLLERS,
+    DEFAULT_DURATION,
+    DEFAULT_STEP,
+)
+from joint_space_control.workbench.tuning.space import (
+    GAINS,
+    OMEGA_N_RANGE,
+    ZETA_RANGE,
+    parse_range,
+)
+from joint_space_control.workbench.tuning.study import BATCH
 
 PROG = "jsc tune"
 
@@ -141,7 +150,7 @@ def _error(message: str) -> None:
 
 
 def _handle(args: argparse.Namespace) -> int:
-    from joint_space_control.tuning.session import TuneOptions
+    from joint_space_control.workbench.tuning.session import TuneOptions
 
     try:
         options = TuneOptions(
@@ -203,9 +212,9 @@ def run(
     the best trial (``confirm(scenario, target)``; default: ``task`` on the ROS engine).
     Ctrl-C fails the trials in flight, cancels the pool (their nodes stopped) and exits
     130."""
-    from joint_space_control.tuning.session import confirm_best, prepare, write_outputs
-    from joint_space_control.tuning.session import run as run_study
-    from joint_space_control.tuning.study import SettingsMismatchError
+    from joint_space_control.workbench.tuning.session import confirm_best, prepare, write_outputs
+    from joint_space_control.workbench.tuning.session import run as run_study
+    from joint_space_control.workbench.tuning.study import SettingsMismatchError
 
     try:
         prepared = prepare(options)
@@ -214,8 +223,8 @@ def run(
     for warning in prepared.warnings:
         log(f"warning: {warning}")
     if pool_class is None or task is None:
-        from joint_space_control.experiments.execution.distributed import RunPool
-        from joint_space_control.experiments.execution.runner import execute_run
+        from joint_space_control.workbench.experiments.execution.distributed import RunPool
+        from joint_space_control.workbench.experiments.execution.runner import execute_run
 
         # a trial needs its metrics, not its figures (most of a short run's analysis)
         pool_class, task = (

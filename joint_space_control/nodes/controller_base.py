@@ -136,6 +136,65 @@ COUNTERS = (
     "clock.backward_jumps",
     "joint_states.backward_jumps",
 )
+#: What a controller node publishes, subscribes to, serves and calls: (kind, relative name,
+#: type, meaning), rendered into docs/reference by joint_space_control.nodes.reference.
+INTERFACE = (
+    (
+        "subscribes",
+        "joint_states",
+        "sensor_msgs/msg/JointState",
+        "the measured state: joints matched by name (extra joints ignored), positions, "
+        "velocities (an empty array: estimated, `velocity_source`); best effort behind a "
+        "realtime plant",
+    ),
+    (
+        "subscribes",
+        "reference",
+        "trajectory_msgs/msg/JointTrajectory",
+        "one point: a set-point; several: a timed trajectory (positions, optional velocities "
+        "and accelerations); `header.stamp` is its start, 0: on receipt",
+    ),
+    (
+        "subscribes",
+        "robot_description",
+        "std_msgs/msg/String",
+        "only with `robot:=topic`: the URDF text, latched (transient local)",
+    ),
+    (
+        "publishes",
+        "effort_command",
+        "sensor_msgs/msg/JointState",
+        "names + effort [N·m] within the effort limits; stamp = the joint state answered; "
+        "`header.frame_id` = this node's full name (the commander)",
+    ),
+    (
+        "publishes",
+        "~/state",
+        "std_msgs/msg/Float64MultiArray",
+        "once per control period while it has a subscriber: the stamp, then q_d, q̇_d, q̈_d, "
+        "q, q̇, the errors and the torque split per joint (rows named in the layout)",
+    ),
+    (
+        "publishes",
+        "~/config",
+        "std_msgs/msg/String",
+        "the configuration in force as JSON (law, robot, joints, limits, gains, every "
+        "parameter); latched, again after every accepted change",
+    ),
+    (
+        "publishes",
+        "/diagnostics",
+        "diagnostic_msgs/msg/DiagnosticArray",
+        "loop statistics and safety counters, once a second",
+    ),
+    (
+        "calls",
+        "<publisher of joint_states>/get_parameters",
+        "rcl_interfaces/srv/GetParameters",
+        "the plant's `mode`: `trigger: auto` follows it, and states are dropped as stale "
+        "only behind a realtime plant",
+    ),
+)
 #: Said once (ERROR) when the node clock goes backwards repeatedly (time_jumps.py).
 CLOCK_JUMPS = (
     "/clock goes backwards and forwards: more than one node publishes /clock in this domain "

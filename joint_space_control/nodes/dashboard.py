@@ -118,6 +118,90 @@ PARAMETERS = (
         step=1.0,
     ),
 )
+#: What the node subscribes to, publishes and calls, all found in the ROS graph: (kind,
+#: name, type, meaning), rendered into docs/reference by joint_space_control.nodes.reference.
+#: Besides, it serves the page over HTTP on ``host``:``port``.
+INTERFACE = (
+    (
+        "subscribes",
+        "<robot>/joint_states",
+        "sensor_msgs/msg/JointState",
+        "every plant's joint states, sampled best effort at most `sample_rate` times a second",
+    ),
+    (
+        "subscribes",
+        "<controller>/state",
+        "std_msgs/msg/Float64MultiArray",
+        "every controller's state (reference, error, torque split), sampled the same way",
+    ),
+    (
+        "subscribes",
+        "<controller>/config",
+        "std_msgs/msg/String",
+        "every controller's configuration (latched): its robot, limits and gains",
+    ),
+    (
+        "subscribes",
+        "/diagnostics",
+        "diagnostic_msgs/msg/DiagnosticArray",
+        "the loop's status shown on the page",
+    ),
+    (
+        "subscribes",
+        "/parameter_events",
+        "rcl_interfaces/msg/ParameterEvent",
+        "parameter changes made elsewhere, shown on the page's controls",
+    ),
+    (
+        "subscribes",
+        "robot_description",
+        "std_msgs/msg/String",
+        "only for a plant started with `robot:=topic`: the URDF text drawn in 3D",
+    ),
+    (
+        "publishes",
+        "<controller's reference topic>",
+        "trajectory_msgs/msg/JointTrajectory",
+        "a set-point or a sinusoid sent from the page",
+    ),
+    (
+        "publishes",
+        "<robot>/<plant>/wrench",
+        "geometry_msgs/msg/WrenchStamped",
+        "a push on a link sent from the page, removed again after its duration",
+    ),
+    (
+        "calls",
+        "<plant>/pause, <plant>/resume, <plant>/reset",
+        "std_srvs/srv/Trigger",
+        "the page's pause, resume and reset buttons",
+    ),
+    (
+        "calls",
+        "<node>/list_parameters",
+        "rcl_interfaces/srv/ListParameters",
+        "the parameters of every controller and of the plant, shown as controls",
+    ),
+    (
+        "calls",
+        "<node>/describe_parameters",
+        "rcl_interfaces/srv/DescribeParameters",
+        "their descriptors: type, range (a slider's ends), read-only",
+    ),
+    (
+        "calls",
+        "<node>/get_parameters",
+        "rcl_interfaces/srv/GetParameters",
+        "their values, and the plant's robot parameters for the 3D model",
+    ),
+    (
+        "calls",
+        "<node>/set_parameters",
+        "rcl_interfaces/srv/SetParameters",
+        f"a value changed on the page (at most {SEND_RATE:g} requests a second); a refusal "
+        "shows the node's reason",
+    ),
+)
 
 
 @dataclass

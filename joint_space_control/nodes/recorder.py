@@ -126,6 +126,32 @@ PARAMETERS = (
         minimum=0.0,
     ),
 )
+#: What the node subscribes to and serves: (kind, relative name, type, meaning), rendered
+#: into docs/reference by joint_space_control.nodes.reference.
+INTERFACE = (
+    (
+        "subscribes",
+        "<recorded topic>",
+        "(any)",
+        "every topic `topics` selects, taken serialized as it appears in the graph and "
+        "written as received; QoS matched to its publishers (best effort if one is, "
+        "transient local if all are)",
+    ),
+    (
+        "serves",
+        "~/flush",
+        "std_srvs/srv/Trigger",
+        "write what is held to the file; answers the messages recorded per topic, "
+        "`{topic: count}` as JSON",
+    ),
+    (
+        "serves",
+        "~/matched",
+        "std_srvs/srv/Trigger",
+        "answers the publishers each recorded topic's subscription is matched with, "
+        "`{topic: count}` as JSON",
+    ),
+)
 
 _RELIABILITY = {
     ReliabilityPolicy.RELIABLE: QosReliability.RELIABLE,

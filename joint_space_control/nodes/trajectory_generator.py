@@ -173,6 +173,36 @@ PARAMETERS = params.ROBOT_PARAMETERS + (
         read_only=True,
     ),
 )
+#: What the node publishes, subscribes to and serves: (kind, relative name, type, meaning),
+#: rendered into docs/reference by joint_space_control.nodes.reference.
+INTERFACE = (
+    (
+        "publishes",
+        "reference",
+        "trajectory_msgs/msg/JointTrajectory",
+        "the configured shape, on `~/publish` or once on start (`publish_on_start`); "
+        "`header.stamp` 0 (on receipt) or now + `start_delay`; not latched",
+    ),
+    (
+        "subscribes",
+        "joint_states",
+        "sensor_msgs/msg/JointState",
+        "only when the shape starts from the current configuration: one valid state, at "
+        "start or on `~/publish`",
+    ),
+    (
+        "subscribes",
+        "robot_description",
+        "std_msgs/msg/String",
+        "only with `robot:=topic`: the URDF text, latched (transient local)",
+    ),
+    (
+        "serves",
+        "~/publish",
+        "std_srvs/srv/Trigger",
+        "publish the configured shape (again); the answer says what was published, or why not",
+    ),
+)
 
 
 @dataclass(frozen=True)

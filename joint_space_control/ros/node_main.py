@@ -22,7 +22,7 @@ from joint_space_control.memory import large_blocks_from_the_system
 from joint_space_control.ros.control_path import spin_node
 
 #: The environment variable that names the process that started a node
-#: (experiments/harness/processes.py sets it): once that process is gone, the node stops.
+#: (processes/processes.py sets it): once that process is gone, the node stops.
 PARENT_PID_ENV = "JSC_PARENT_PID"
 #: How often [s] a node looks whether its starting process is still there.
 PARENT_POLL = 0.25
@@ -90,7 +90,7 @@ def run_node(
     the executor that spins it (made before the node, so that a signal during start-up finds
     it whole).
 
-    A node started by :mod:`~joint_space_control.experiments.harness.processes` also stops, as on
+    A node started by :mod:`~joint_space_control.processes.processes` also stops, as on
     SIGTERM, once the process that started it is gone (:func:`watch_parent`).
     """
     # Ctrl-C and SIGTERM are handled here, not by rclpy: rclpy's handlers shut the context

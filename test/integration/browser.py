@@ -28,7 +28,7 @@ import pytest
 
 # Chromium's switches (software WebGL on SwiftShader, no sandbox: see the module docstring),
 # one list for the tests and the bench
-from joint_space_control.bench.browser import CHROMIUM_ARGS, without_sys_nice
+from joint_space_control.lab.bench.browser import CHROMIUM_ARGS, without_sys_nice
 
 if TYPE_CHECKING:
     from playwright.sync_api import Browser, Playwright

@@ -18,8 +18,8 @@ from typing import Any
 
 import pytest
 
-from joint_space_control.experiments.harness.domains import DomainLease, lease_domain
-from joint_space_control.experiments.harness.loop import ClosedLoop
+from joint_space_control.processes.domains import DomainLease, lease_domain
+from joint_space_control.processes.loop import ClosedLoop
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 

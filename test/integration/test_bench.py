@@ -11,8 +11,8 @@ import sys
 
 import pytest
 
-from joint_space_control.bench.compute import PHYSICS_ROBOTS
-from joint_space_control.bench.run import ENGINES, ROBOTS, SECTIONS
+from joint_space_control.lab.bench.compute import PHYSICS_ROBOTS
+from joint_space_control.lab.bench.run import ENGINES, ROBOTS, SECTIONS
 
 # realtime: run alone after the parallel part, since its CPU hogs would load the machine
 # under another worker's test
@@ -187,4 +187,4 @@ def test_quick_dashboard_section_pairs_the_loop_without_and_with_the_page(tmp_pa
 
     ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert str(out) not in ps  # node processes (their parameter files are under out/)
-    assert "joint_space_control.bench.browser" not in ps  # the page's process
+    assert "joint_space_control.lab.bench.browser" not in ps  # the page's process

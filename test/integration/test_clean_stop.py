@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from joint_space_control.experiments.harness.processes import ProcessGroup, isolated_env
+from joint_space_control.processes.processes import ProcessGroup, isolated_env
 
 from .conftest import next_domain_id
 

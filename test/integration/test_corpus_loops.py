@@ -2,7 +2,8 @@
 on robot descriptions nobody here wrote (test/corpus.py).
 
 The node processes (sim_bridge in lockstep, the controller, the recorder) and the in-process
-engine (:mod:`joint_space_control.experiments.execution.inprocess`: the same plant, controller
+engine (:mod:`joint_space_control.workbench.experiments.execution.inprocess`: the same plant,
+controller
 objects and sub-step loop, no ROS graph) run the same step of a corpus robot from the
 controllers' parameters; every recorded ``~/state`` row (q_d … τ, the joint state answered) is
 equal to the last bit, and so are the metrics of the analysis. The theory itself is checked on
@@ -15,12 +16,12 @@ import numpy as np
 import pytest
 
 from joint_space_control.analysis.run_metrics import analyze_bag
-from joint_space_control.experiments.execution.equivalence import differences
-from joint_space_control.experiments.execution.inprocess import InProcessLoop
-from joint_space_control.experiments.harness.loop import ClosedLoop
-from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
+from joint_space_control.processes.loop import ClosedLoop
+from joint_space_control.workbench.experiments.execution.equivalence import differences
+from joint_space_control.workbench.experiments.execution.inprocess import InProcessLoop
+from joint_space_control.workbench.experiments.scenarios.format import RobotSetup
 from test.corpus import BY_NAME, PACKAGE_PATHS
 from test.unit.test_corpus import step_inside_limits
 

@@ -28,7 +28,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
-from joint_space_control.bench.browser import PLOTTING_TEXT
+from joint_space_control.lab.bench.browser import PLOTTING_TEXT
 from joint_space_control.ros.messages import REFERENCE_QOS, stamp_to_ns
 
 from .browser import chromium

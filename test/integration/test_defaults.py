@@ -17,10 +17,10 @@ from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from joint_space_control.experiments.harness.probe import LoopProbe
-from joint_space_control.experiments.harness.processes import ProcessGroup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
+from joint_space_control.processes.probe import LoopProbe
+from joint_space_control.processes.processes import ProcessGroup
 from joint_space_control.ros.messages import CONFIG_QOS, CONTROL_QOS
 
 from .conftest import next_domain_id

@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from joint_space_control.experiments.harness.processes import ProcessGroup, isolated_env
+from joint_space_control.processes.processes import ProcessGroup, isolated_env
 from test.corpus import BY_NAME, PACKAGE_PATHS, floating_g1
 
 from .conftest import next_domain_id

@@ -34,10 +34,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from joint_space_control.experiments.execution.distributed import RunPool, on_cancel
-from joint_space_control.experiments.execution.runner import run_scenario
-from joint_space_control.experiments.experiment import run_experiment
-from joint_space_control.experiments.scenarios import format as scenarios
+from joint_space_control.workbench.experiments.execution.distributed import RunPool, on_cancel
+from joint_space_control.workbench.experiments.execution.runner import run_scenario
+from joint_space_control.workbench.experiments.experiment import run_experiment
+from joint_space_control.workbench.experiments.scenarios import format as scenarios
 
 pytestmark = pytest.mark.integration
 
@@ -539,7 +539,7 @@ def test_ctrl_c_of_jsc_experiment_on_a_local_cluster_leaves_nothing(tmp_path, ma
 def test_bench_sweep_section_times_one_sweep_on_one_and_two_workers(tmp_path, marker):
     """``jsc bench`` section ``sweep``, tiny: both cluster sizes measured, every phase of a
     run timed, the rows printed (speeds are not judged: a shared machine)."""
-    from joint_space_control.bench.sweep import PHASES, format_sweep, throughput
+    from joint_space_control.lab.bench.sweep import PHASES, format_sweep, throughput
 
     lines: list[str] = []
     sweep = throughput(tmp_path, runs=2, duration=0.2, workers=(1, 2), log=lines.append)

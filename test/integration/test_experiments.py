@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from joint_space_control.analysis.metrics import second_order_prediction
-from joint_space_control.experiments.execution.equivalence import compare_experiments
-from joint_space_control.experiments.scenarios.format import available
+from joint_space_control.workbench.experiments.execution.equivalence import compare_experiments
+from joint_space_control.workbench.experiments.scenarios.format import available
 
 from .conftest import interrupt_once_running
 

@@ -18,10 +18,10 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from joint_space_control.experiments.harness.probe import LoopProbe
-from joint_space_control.experiments.harness.processes import ProcessGroup, isolated_env
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
+from joint_space_control.processes.probe import LoopProbe
+from joint_space_control.processes.processes import ProcessGroup, isolated_env
 from joint_space_control.ros.messages import ns_to_stamp, stamp_to_ns
 from test.corpus import BY_NAME, PACKAGE_PATHS
 

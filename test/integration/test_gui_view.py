@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 from PIL import Image, ImageGrab
 
-from joint_space_control.experiments.harness.probe import LoopProbe
-from joint_space_control.experiments.harness.processes import ProcessGroup
+from joint_space_control.processes.probe import LoopProbe
+from joint_space_control.processes.processes import ProcessGroup
 
 from .conftest import next_domain_id
 

@@ -22,8 +22,8 @@ pytestmark = pytest.mark.integration
 PARENT = """
 import json, sys, time
 from pathlib import Path
-from joint_space_control.experiments.harness.domains import lease_domain
-from joint_space_control.experiments.harness.processes import ProcessGroup
+from joint_space_control.processes.domains import lease_domain
+from joint_space_control.processes.processes import ProcessGroup
 out = Path(sys.argv[1])
 lease = lease_domain()
 group = ProcessGroup(out / "logs", lease.domain_id, (lease.fileno(),))

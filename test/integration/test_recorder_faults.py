@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
-from joint_space_control.experiments.harness.loop import ClosedLoop
-from joint_space_control.experiments.harness.processes import EXECUTABLES, isolated_env
+from joint_space_control.processes.loop import ClosedLoop
+from joint_space_control.processes.processes import EXECUTABLES, isolated_env
 from joint_space_control.recording.bag_writer import free_space_mb, jazzy_typestore
 from joint_space_control.recording.recover import RecoveryError, recover
 

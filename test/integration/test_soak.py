@@ -100,7 +100,7 @@ def test_short_fault_soak_survives_every_fault_kind_once(tmp_path):
     report = json.loads((out / "soak.json").read_text())
     assert report["passed"] is True and report["options"]["rate_hz"] == loop_rate()
     kinds = [f["kind"] for f in report["faults"]]
-    from joint_space_control.experiments.fault_schedule import KINDS
+    from joint_space_control.lab.soaks.fault_schedule import KINDS
 
     assert sorted(kinds) == sorted(KINDS)  # every kind, once
     for kind in KINDS:

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from joint_space_control.experiments.harness.processes import EXECUTABLES, ProcessGroup
+from joint_space_control.processes.processes import EXECUTABLES, ProcessGroup
 
 from .conftest import next_domain_id
 

@@ -19,9 +19,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from joint_space_control.experiments.harness import processes
-from joint_space_control.experiments.harness.probe import LoopProbe
-from joint_space_control.experiments.harness.processes import ProcessGroup
+from joint_space_control.processes import processes
+from joint_space_control.processes.probe import LoopProbe
+from joint_space_control.processes.processes import ProcessGroup
 from joint_space_control.ros.messages import CONTROL_QOS, REFERENCE_QOS, stamp_to_ns
 
 from .conftest import JOINTS, next_domain_id

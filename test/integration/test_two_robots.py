@@ -25,8 +25,8 @@ from builtin_interfaces.msg import Duration
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from joint_space_control.experiments.harness.probe import LoopProbe
-from joint_space_control.experiments.harness.processes import ProcessGroup
+from joint_space_control.processes.probe import LoopProbe
+from joint_space_control.processes.processes import ProcessGroup
 from joint_space_control.ros.messages import REFERENCE_QOS, stamp_to_ns
 
 from .conftest import GAINS, JOINTS, SETPOINTS, next_domain_id

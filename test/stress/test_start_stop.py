@@ -19,8 +19,8 @@ from pathlib import Path
 
 import pytest
 
-from joint_space_control.experiments.harness.domains import lease_domain
-from joint_space_control.experiments.harness.processes import ProcessGroup, isolated_env
+from joint_space_control.processes.domains import lease_domain
+from joint_space_control.processes.processes import ProcessGroup, isolated_env
 
 pytestmark = pytest.mark.integration
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from joint_space_control.bench.dashboard import format_dashboard, goals, summarise
+from joint_space_control.lab.bench.dashboard import format_dashboard, goals, summarise
 
 
 def _runs(realtime_plotting: bool) -> list[dict]:

@@ -8,8 +8,8 @@ import math
 
 import pytest
 
-from joint_space_control.bench import compute
-from joint_space_control.bench.run import (
+from joint_space_control.lab.bench import compute
+from joint_space_control.lab.bench.run import (
     ENGINES,
     LAWS,
     ROBOTS,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from joint_space_control.bench.run import median_row, ratios
+from joint_space_control.lab.bench.run import median_row, ratios
 
 
 def test_median_row_keeps_every_round():

@@ -10,8 +10,8 @@ from collections.abc import Callable
 import pytest
 from rclpy.task import Future
 
-from joint_space_control.experiments.harness import client as client_module
-from joint_space_control.experiments.harness.client import RosClient
+from joint_space_control.processes import client as client_module
+from joint_space_control.processes.client import RosClient
 
 RESEND = 0.05  # [s] instead of RESEND_AFTER, for a quick test
 

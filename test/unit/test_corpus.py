@@ -21,8 +21,6 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from joint_space_control.experiments.execution.inprocess import InProcessLoop
-from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.laws.gains import (
     DEFAULT_OMEGA_N,
     pd_gains_from_second_order,
@@ -30,6 +28,8 @@ from joint_space_control.laws.gains import (
 from joint_space_control.model.description import DescriptionError
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot, urdf_facts
+from joint_space_control.workbench.experiments.execution.inprocess import InProcessLoop
+from joint_space_control.workbench.experiments.scenarios.format import RobotSetup
 from sim_bridge.engines import ENGINES
 from sim_bridge.plant import Plant
 from test.corpus import BY_NAME, CORPUS, DOUBLE_PENDULUM, PACKAGE_PATHS, floating_g1

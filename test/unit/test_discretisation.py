@@ -1,5 +1,5 @@
 """The plant's discretisation error is its semi-implicit Euler's, first order on both engines
-(sim_bridge/discretisation.py; docs/plant.md, "Discretisation error").
+(joint_space_control/lab/discretisation.py; docs/plant.md, "Discretisation error").
 
 PD + g(q) at the controller's default gains (ω_n = 10 rad/s, ζ = 1), evaluated at every
 physics step, from q = 0 at rest to a set-point, 1 s at 250 … 4000 Hz on each engine, against
@@ -22,9 +22,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from joint_space_control.model.dynamics import RobotModel
-from joint_space_control.model.robots import resolve_robot
-from sim_bridge.discretisation import (
+from joint_space_control.lab.discretisation import (
     MODEL,
     RATES,
     SETPOINTS,
@@ -35,6 +33,8 @@ from sim_bridge.discretisation import (
     measure,
     observed_orders,
 )
+from joint_space_control.model.dynamics import RobotModel
+from joint_space_control.model.robots import resolve_robot
 from sim_bridge.engines import ENGINES
 
 ROBOTS = ("planar_2dof", "iiwa")

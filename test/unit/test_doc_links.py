@@ -1,10 +1,12 @@
-"""Every relative link of README.md and docs/*.md resolves (issue 13, item 7).
+"""Every relative link of README.md and of every page under docs/ (docs/**/*.md: the
+tutorials and the generated node reference included) resolves.
 
 A link is ``[text](target)`` or ``![alt](target)`` outside code (fenced blocks and inline code
 spans are skipped). Links to http(s):// and mailto: are not followed. A relative target must
 name an existing file or directory, resolved from the Markdown file that holds the link; an
 anchor (``file.md#anchor`` or ``#anchor`` in the same file) must be the GitHub slug of a
-heading of that Markdown file. Every page under docs/ is linked from the README."""
+heading of that Markdown file. Every page directly under docs/ is linked from the README, and
+every page below it can be reached from the README by following links."""
 
 from __future__ import annotations
 
@@ -16,7 +18,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
+#: The pages directly under docs/ (each linked from the README) ...
 DOCS = sorted((ROOT / "docs").glob("*.md"))
+#: ... and every page under docs/, at any depth.
+ALL_DOCS = sorted((ROOT / "docs").rglob("*.md"))
 
 _FENCE = re.compile(r"^\s*(```|~~~)")
 _CODE_SPAN = re.compile(r"(`+)(.+?)\1")
@@ -93,7 +98,7 @@ def broken_links(path: Path) -> list[str]:
     return broken
 
 
-@pytest.mark.parametrize("page", [README, *DOCS], ids=lambda p: p.relative_to(ROOT).as_posix())
+@pytest.mark.parametrize("page", [README, *ALL_DOCS], ids=lambda p: p.relative_to(ROOT).as_posix())
 def test_every_relative_link_resolves(page):
     assert links(page) or page != README, "no links found in the README: parser broken?"
     assert broken_links(page) == []
@@ -107,6 +112,38 @@ def test_every_docs_page_is_linked_from_the_readme():
     }
     assert DOCS, "no docs/*.md found"
     assert [p.name for p in DOCS if p.resolve() not in linked] == []
+
+
+def linked_pages(page: Path) -> set[Path]:
+    """The Markdown files (a folder: its README.md) a page links to, resolved."""
+    found = set()
+    for _, target in links(page):
+        file_part = target.partition("#")[0]
+        if not file_part or target.lower().startswith(_EXTERNAL):
+            continue
+        destination = (page.parent / unquote(file_part)).resolve()
+        if destination.is_dir():
+            destination = destination / "README.md"
+        if destination.suffix == ".md" and destination.exists():
+            found.add(destination)
+    return found
+
+
+def reachable(start: Path) -> set[Path]:
+    """Every Markdown file reached from ``start`` by following relative links."""
+    seen, todo = set(), [start.resolve()]
+    while todo:
+        page = todo.pop()
+        if page not in seen:
+            seen.add(page)
+            todo.extend(linked_pages(page) - seen)
+    return seen
+
+
+def test_every_docs_page_can_be_reached_from_the_readme():
+    found = reachable(README)
+    assert any(p.parent.name != "docs" for p in ALL_DOCS), "no page below docs/: glob broken?"
+    assert [p.relative_to(ROOT).as_posix() for p in ALL_DOCS if p.resolve() not in found] == []
 
 
 def test_the_checker_finds_broken_files_and_anchors(tmp_path):

@@ -6,12 +6,12 @@ import json
 import subprocess
 import sys
 
-from joint_space_control.experiments.harness.domains import FIRST, LAST, lease_domain
+from joint_space_control.processes.domains import FIRST, LAST, lease_domain
 
 #: Another process leasing every domain it can get, printing their ids.
 GRAB_ALL = """
 import json
-from joint_space_control.experiments.harness.domains import lease_domain
+from joint_space_control.processes.domains import lease_domain
 held = []
 while True:
     try:

@@ -1,10 +1,11 @@
-"""What counts as the same experiment on two engines (experiments/execution/equivalence.py)."""
+"""What counts as the same experiment on two engines
+(workbench/experiments/execution/equivalence.py)."""
 
 from __future__ import annotations
 
 import math
 
-from joint_space_control.experiments.execution.equivalence import differences
+from joint_space_control.workbench.experiments.execution.equivalence import differences
 
 
 def test_equal_values_and_nan_are_the_same():

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from joint_space_control.analysis.bag import BagError, BagReader
-from joint_space_control.analysis.fault_figures import fault_figure, kind_colours, plotted_error
-from joint_space_control.analysis.fault_metrics import (
+from joint_space_control.lab.soaks.fault_figures import fault_figure, kind_colours, plotted_error
+from joint_space_control.lab.soaks.fault_metrics import (
     KINDS,
     BagSpan,
     FaultRecord,
@@ -37,8 +37,8 @@ from joint_space_control.analysis.fault_metrics import (
     tracking_error,
     worst_growth,
 )
-from joint_space_control.analysis.fault_timeline import read_timeline
-from joint_space_control.analysis.soak_metrics import MB, passed
+from joint_space_control.lab.soaks.fault_timeline import read_timeline
+from joint_space_control.lab.soaks.soak_metrics import MB, passed
 from joint_space_control.recording.bag_writer import BagWriter, jazzy_typestore
 
 T = 1_000_000  # plant period [ns], 1 kHz

@@ -1,4 +1,4 @@
-"""The fault soak's schedule (experiments/fault_schedule.py): one fault a period, every kind
+"""The fault soak's schedule (lab/soaks/fault_schedule.py): one fault a period, every kind
 at least once when there are as many faults as kinds, the same seed the same schedule."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import collections
 
 import pytest
 
-from joint_space_control.experiments.fault_schedule import KINDS, fault_schedule
+from joint_space_control.lab.soaks.fault_schedule import KINDS, fault_schedule
 
 
 def test_an_hour_has_a_fault_a_minute_and_every_kind():

@@ -11,10 +11,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from joint_space_control.experiments.execution import values
-from joint_space_control.experiments.judging import boundaries, theory
-from joint_space_control.experiments.presentation import sweep_figures
-from joint_space_control.experiments.scenarios.format import Axis, available, load, parse
+from joint_space_control.workbench.experiments.execution import values
+from joint_space_control.workbench.experiments.judging import boundaries, theory
+from joint_space_control.workbench.experiments.presentation import sweep_figures
+from joint_space_control.workbench.experiments.scenarios.format import Axis, available, load, parse
 
 ID = "inverse_dynamics_controller"
 
@@ -441,9 +441,9 @@ def test_the_grid_scenarios_are_installed_with_their_boundaries():
 
 
 def test_the_results_page_shows_a_grids_heat_maps_in_its_question(tmp_path):
-    from joint_space_control.experiments.experiment import ExperimentResult
-    from joint_space_control.experiments.judging.outcome import Outcome
-    from joint_space_control.experiments.presentation.results import (
+    from joint_space_control.workbench.experiments.experiment import ExperimentResult
+    from joint_space_control.workbench.experiments.judging.outcome import Outcome
+    from joint_space_control.workbench.experiments.presentation.results import (
         results_page,
         summary_markdown,
     )
@@ -471,7 +471,7 @@ def test_the_results_page_shows_a_grids_heat_maps_in_its_question(tmp_path):
 
 
 def test_the_results_page_points_to_the_tuning_example_only_beside_it(tmp_path):
-    from joint_space_control.experiments.presentation.results import (
+    from joint_space_control.workbench.experiments.presentation.results import (
         TUNING_FIGURE,
         TUNING_PAGE,
         tuning_section,
@@ -489,7 +489,7 @@ def test_the_results_page_points_to_the_tuning_example_only_beside_it(tmp_path):
 
 
 def test_the_tuning_example_the_results_page_links_exists_in_the_docs():
-    from joint_space_control.experiments.presentation.results import (
+    from joint_space_control.workbench.experiments.presentation.results import (
         TUNING_EXAMPLE,
         TUNING_FIGURE,
         TUNING_PAGE,

@@ -25,10 +25,13 @@ from joint_space_control.analysis.metrics import (
     tracking_error,
 )
 from joint_space_control.analysis.run_metrics import analyze_bag
-from joint_space_control.experiments.execution.inprocess import EngineError, InProcessLoop
-from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
+from joint_space_control.workbench.experiments.execution.inprocess import (
+    EngineError,
+    InProcessLoop,
+)
+from joint_space_control.workbench.experiments.scenarios.format import RobotSetup
 from sim_bridge.engines import ENGINES
 from test.corpus import BY_NAME, PACKAGE_PATHS
 from test.loops import GAINS, ID_CASES, SETPOINTS

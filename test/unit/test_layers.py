@@ -1,7 +1,8 @@
-"""No module imports from a layer above its own (issue 13, item 5).
+"""No module imports from a layer above its own.
 
 The package is built in layers so that the maths can be used, tested and read without ROS,
-and the ROS layer without the tools built on it. The modules are parsed, not imported: every
+the ROS layer without the tools built on it, and the product without its workbench and its
+lab. The modules are parsed, not imported: every
 ``import`` statement counts, including the ones inside functions (deferred imports are still
 dependencies).
 """
@@ -16,27 +17,6 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("joint_space_control", "sim_bridge")
 
-# Low → high. A module may import from its own layer and the layers below it.
-# - arrays, paths, json_values, enums, machine, memory, scheduling, throttle, time_jumps,
-#   staleness: no knowledge of robots, control or ROS;
-# - model, laws, trajectories: the maths of the robot and the control laws;
-# - control: the controllers themselves (configuration, state, step) and the policy a node
-#   drives them by, no ROS;
-# - the plant (PLANT): sim_bridge's engines and robot plants, no ROS;
-# - analysis, recording: bags and metrics (rosbags, matplotlib; no running ROS graph);
-# - simulation: the closed loop in one process (plant + policy), simulate() -> Response;
-# - ros: the ROS 2 layer the nodes share (parameters, messages, control path, diagnostics);
-# - nodes, dashboard, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level
-#   package; dashboard holds the web page the dashboard node serves);
-# - experiments: one layer, five jobs in its subpackages (they may import each other):
-#   harness (node processes, domains, client nodes, the lockstep ClosedLoop), scenarios (the
-#   scenario format, --params-file), execution (runner, RunPool, the in-process engine, run
-#   values, engine equivalence), judging (the §5 and §4 checks, Outcome/RunView, boundaries),
-#   presentation (figures, sweep figures, summaries and the results page); at its top,
-#   experiment.py (run_experiment), soak.py and demo.py;
-# - bench: measurements that drive the experiments' process machinery;
-# - tuning: jsc tune's study, whose trials are experiment runs;
-# - cli: argument parsing that calls the layers below.
 #: sim_bridge's plant: the engines and what a robot's plant does on them, with no ROS (the
 #: node around them is in sim_bridge's other modules).
 PLANT = (
@@ -50,7 +30,30 @@ PLANT = (
     "sim_bridge.parameters",
     "sim_bridge.view",
 )
-LAYERS: tuple[tuple[str, ...], ...] = (
+
+# Low → high. A module may import from its own layer and the layers below it. The layers
+# form three parts, each depending only on those before it: the product (what a user runs),
+# the workbench (what a student explores with), the lab (what a maintainer proves it with).
+# The product:
+# - arrays, paths, json_values, enums, machine, memory, scheduling, throttle, time_jumps,
+#   staleness: no knowledge of robots, control or ROS;
+# - model, laws, trajectories: the maths of the robot and the control laws;
+# - control: the controllers themselves (configuration, state, step) and the policy a node
+#   drives them by, no ROS;
+# - the plant (PLANT): sim_bridge's engines and robot plants, no ROS;
+# - analysis, recording: bags and metrics (rosbags, matplotlib; no running ROS graph);
+# - simulation: the closed loop in one process (plant + policy), simulate() -> Response;
+# - ros: the ROS 2 layer the nodes share (parameters, messages, control path, diagnostics);
+# - nodes, dashboard, sim_bridge: the ROS 2 nodes (sim_bridge is a node of its own top-level
+#   package; dashboard holds the web page the dashboard node serves);
+# - processes: the nodes as processes in a leased ROS domain, the lockstep loop over them,
+#   make demo;
+# The workbench: experiments (jsc experiment: scenarios, execution on either engine, judging,
+# presentation), tuning (jsc tune).
+# The lab: bench (jsc bench), soaks (jsc soak), discretisation.
+# - cli: argument parsing over all three (a workbench or lab verb imports its part only
+#   when it runs).
+PRODUCT: tuple[tuple[str, ...], ...] = (
     (
         "joint_space_control.arrays",
         "joint_space_control.paths",
@@ -75,9 +78,14 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("joint_space_control.simulation",),
     ("joint_space_control.ros",),
     ("joint_space_control.nodes", "joint_space_control.dashboard", "sim_bridge"),
-    ("joint_space_control.experiments",),
-    ("joint_space_control.bench",),
-    ("joint_space_control.tuning",),
+    ("joint_space_control.processes",),
+)
+WORKBENCH = (("joint_space_control.workbench",),)
+LAB = (("joint_space_control.lab",),)
+LAYERS: tuple[tuple[str, ...], ...] = (
+    *PRODUCT,
+    *WORKBENCH,
+    *LAB,
     ("joint_space_control.cli",),
 )
 
@@ -142,11 +150,13 @@ def test_no_import_from_a_layer_above(path: Path):
 
 def test_layer_walk_sees_deferred_and_relative_imports():
     """The walk itself: an import inside a function and a relative import are both found."""
-    code = "def f():\n    from joint_space_control.cli import analyze\nfrom ..bench import run\n"
+    code = (
+        "def f():\n    from joint_space_control.cli import analyze\nfrom ..lab.bench import run\n"
+    )
     found = imported_modules(ast.parse(code), "joint_space_control.analysis.x", False)
     assert sorted((name, layer_of(name)) for _, name in found) == [
-        ("joint_space_control.bench.run", LAYERS.index(("joint_space_control.bench",))),
         ("joint_space_control.cli.analyze", LAYERS.index(("joint_space_control.cli",))),
+        ("joint_space_control.lab.bench.run", LAYERS.index(("joint_space_control.lab",))),
     ]
 
 
@@ -174,3 +184,27 @@ def test_the_loop_imports_no_ros():
                 found.append(f"{path.relative_to(ROOT)}:{line} imports {name}")
     assert found == []
     assert any(module_name(p).startswith("joint_space_control.simulation") for p in sources())
+
+
+def test_the_product_needs_neither_the_workbench_nor_the_lab():
+    """lab → workbench → product, never back: what a user runs imports nothing of the
+    workbench or the lab, and the workbench nothing of the lab (the folder names say which
+    part a module belongs to)."""
+    parts = {"workbench": len(PRODUCT), "lab": len(PRODUCT) + len(WORKBENCH)}
+    backwards = []
+    for path in sources():
+        module = module_name(path)
+        level = layer_of(module)
+        if level is None or level >= parts["lab"] + len(LAB):  # the cli dispatches to all
+            continue
+        tree = ast.parse(path.read_text(), str(path))
+        for line, name in imported_modules(tree, module, path.name == "__init__.py"):
+            target = layer_of(name)
+            if target is None:
+                continue
+            for part, first in parts.items():
+                if level < first <= target:
+                    backwards.append(f"{path.relative_to(ROOT)}:{line} imports the {part}: {name}")
+    assert backwards == []
+    assert layer_of("joint_space_control.workbench.tuning.study") == parts["workbench"]
+    assert layer_of("joint_space_control.lab.bench.run") == parts["lab"]

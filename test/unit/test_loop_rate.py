@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from joint_space_control.experiments.soak import check_loop_rate
+from joint_space_control.lab.soaks.soak import check_loop_rate
 from test.integration.loop_rate import PLANT_ALONE_RATE, RATES, SLOWEST_RATE, rate_for
 
 

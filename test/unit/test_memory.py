@@ -21,7 +21,7 @@ LEFT_BEHIND = """
 import os
 import sys
 import numpy as np
-from joint_space_control.experiments.soak import rss_of
+from joint_space_control.lab.soaks.soak import rss_of
 from joint_space_control.memory import large_blocks_from_the_system
 def rss():
     return rss_of(os.getpid()) / 2**20
@@ -61,7 +61,7 @@ HOLES = """
 import ctypes
 import os
 import sys
-from joint_space_control.experiments.soak import rss_of
+from joint_space_control.lab.soaks.soak import rss_of
 from joint_space_control.memory import give_back_free_memory, large_blocks_from_the_system
 def rss():
     return rss_of(os.getpid()) / 2**20

@@ -3,8 +3,8 @@
 
 import math
 
-from joint_space_control.analysis.loop_digest import format_loops, loop_windows, sample
-from joint_space_control.analysis.node_logs import format_said, said, said_in, tracebacks
+from joint_space_control.lab.soaks.loop_digest import format_loops, loop_windows, sample
+from joint_space_control.lab.soaks.node_logs import format_said, said, said_in, tracebacks
 
 
 def _status(t, name="ctl: control loop", level=0, message="ok", rate="1000.0000", p99="80"):

@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 
 from joint_space_control import paths
-from joint_space_control.experiments.scenarios import format as scenarios
 from joint_space_control.model.robots import builtin_robots
+from joint_space_control.workbench.experiments.scenarios import format as scenarios
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE_DIR = ROOT / "joint_space_control"

@@ -1,25 +1,36 @@
-"""The parameters as declared by the nodes (their ParamSpec lists, the one place each is
-declared) agree with the tables of docs/parameters.md and with the parameter files in
-config/: every parameter is documented, under its node, with its default and its
-read-only mark, and every key of a parameter file is a parameter of that node."""
+"""The parameters as the nodes declare them (their ParamSpec lists, the one place each is
+declared) agree with what the documentation says and with the parameter files in config/:
+
+- the node reference (docs/reference/<node>.md, generated: test_node_reference.py checks the
+  pages are what the declarations render) lists every parameter of its node, and no other,
+  with its declared default, read-only mark and range or choices;
+- every hand-written parameter table of the docs (the guide docs/parameters.md,
+  references.md, recording.md) names only declared parameters, with their declared default,
+  read-only mark and range;
+- every key of a parameter file is a parameter of that node, and every file is some node's.
+"""
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 import yaml
 
 from joint_space_control.control.configure import COMMON_PARAMETERS, INVERSE_DYNAMICS, PD_GRAVITY
+from joint_space_control.nodes.dashboard import PARAMETERS as DASHBOARD
 from joint_space_control.nodes.recorder import PARAMETERS as RECORDER
+from joint_space_control.nodes.reference import parameter_files
 from joint_space_control.nodes.trajectory_generator import PARAMETERS as GENERATOR
-from joint_space_control.ros.parameters import ROBOT_PARAMETERS, ParamSpec
+from joint_space_control.ros.parameters import ParamSpec
 from sim_bridge.node import PARAMETERS as SIM_BRIDGE
 from sim_bridge.parameters import prefixed
 
 ROOT = Path(__file__).resolve().parents[2]
-DOC = ROOT / "docs" / "parameters.md"
+DOCS = ROOT / "docs"
+REFERENCE = DOCS / "reference"
 CONFIG = ROOT / "joint_space_control" / "config"
 
 NODES: dict[str, tuple[ParamSpec, ...]] = {
@@ -28,41 +39,67 @@ NODES: dict[str, tuple[ParamSpec, ...]] = {
     "inverse_dynamics_controller": INVERSE_DYNAMICS.parameters,
     "trajectory_generator": GENERATOR,
     "recorder": RECORDER,
+    "dashboard": DASHBOARD,
 }
-#: Parameters the docs describe once for several nodes: the robot ones ("every node") and
-#: the controllers' common ones (under pd_gravity_controller, "same common parameters").
-SHARED = {"every node": ROBOT_PARAMETERS, "pd_gravity_controller": COMMON_PARAMETERS}
+#: Every declared parameter by name (a name means the same on every node that has it).
+DECLARED: dict[str, ParamSpec] = {s.name: s for specs in NODES.values() for s in specs}
+
+#: Pages with hand-written parameter tables (``| parameter ... |`` headers).
+HAND_WRITTEN = ("parameters.md", "references.md", "recording.md")
 
 
-#: Pages holding one node's table, besides docs/parameters.md (sections by bold node names).
-PAGES = {"references.md": "trajectory_generator", "recording.md": "recorder"}
+@dataclass(frozen=True)
+class Row:
+    page: str
+    name: str
+    default: str
+    read_only: bool
+    range: str  # the reference's range cell; a hand table's meaning cell
 
 
-def documented_rows() -> dict[str, dict[str, tuple[str, bool]]]:
-    """{section: {parameter: (default text, read-only)}} from the parameter tables of the
-    docs; a section is a node name (or "every node")."""
-    sections: dict[str, dict[str, tuple[str, bool]]] = {}
-    for page in ["parameters.md", *PAGES]:
-        section = PAGES.get(page)
+def cells(line: str) -> list[str]:
+    """The cells of a table row; an escaped pipe (``\\|``) stays inside its cell."""
+    return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
+
+
+def reference_rows() -> dict[str, dict[str, Row]]:
+    """{node: {parameter: row}} from the parameter tables of the node reference, whose
+    columns are parameter | type | default | range | unit | set | description."""
+    out: dict[str, dict[str, Row]] = {}
+    for node in NODES:
+        page = REFERENCE / f"{node}.md"
+        rows = out[node] = {}
+        if not page.exists():
+            continue
+        in_parameters = False
+        for line in page.read_text(encoding="utf-8").splitlines():
+            if line.startswith("## "):
+                in_parameters = line == "## Parameters"
+            if in_parameters and line.startswith("| `"):
+                c = cells(line)
+                name = c[0].strip("`")
+                rows[name] = Row(page.name, name, c[2], c[5] == "start (RO)", c[3])
+    return out
+
+
+def hand_written_rows() -> list[Row]:
+    """Every row of a hand-written parameter table: one per parameter it names."""
+    rows = []
+    for page in HAND_WRITTEN:
         all_ro = False
-        for line in (DOC.parent / page).read_text().splitlines():
-            bold = re.match(r"\*\*(\w+)\*\*", line)
-            if bold and page == "parameters.md":
-                section, all_ro = bold.group(1), False
+        for line in (DOCS / page).read_text(encoding="utf-8").splitlines():
             if line.startswith("| parameter"):
-                if "every node" in line:
-                    section = "every node"
                 all_ro = "RO" in line
                 continue
-            if not line.startswith("| `") or section is None:
+            if not line.startswith("| `"):
                 continue
-            cells = [c.strip() for c in line.strip("|").split("|")]
-            names = re.findall(r"`([a-z_]+)`", cells[0])
-            ro = "(RO)" in cells[0] or all_ro
-            defaults = [d.strip() for d in cells[1].split(",")] if len(names) > 1 else [cells[1]]
+            c = cells(line)
+            names = re.findall(r"`([a-z_]+)`", c[0])
+            ro = "(RO)" in c[0] or all_ro
+            defaults = [d.strip() for d in c[1].split(",")] if len(names) > 1 else [c[1]]
             for name, default in zip(names, defaults, strict=False):
-                sections.setdefault(section, {})[name] = (default, ro)
-    return sections
+                rows.append(Row(page, name, default, ro, c[-1]))
+    return rows
 
 
 def same_default(text: str, value: object) -> bool:
@@ -86,53 +123,62 @@ def same_default(text: str, value: object) -> bool:
     return text == value
 
 
-#: Where the controllers' shared parameters are documented: under either controller.
-CONTROLLERS = ("pd_gravity_controller", "inverse_dynamics_controller")
+@pytest.mark.parametrize("node", list(NODES))
+def test_the_reference_lists_every_parameter_with_its_default_mark_and_range(node):
+    rows = reference_rows()[node]
+    assert rows, f"no parameter table in docs/reference/{node}.md"
+    assert set(rows) == {spec.name for spec in NODES[node]}, node
+    for spec in NODES[node]:
+        row = rows[spec.name]
+        assert same_default(row.default, spec.default), (node, spec.name, row.default)
+        assert row.read_only == spec.read_only, (node, spec.name, "RO mark")
+        if spec.choices:
+            assert re.findall(r"`([^`]*)`", row.range) == list(spec.choices), (node, spec.name)
+        else:
+            assert row.range == (f"`{spec.bound}`" if spec.bound else ""), (node, spec.name)
 
 
-def sections_of(node: str, name: str) -> tuple[str, ...]:
-    if name in {s.name for s in ROBOT_PARAMETERS}:
-        return ("every node",)
-    if node in CONTROLLERS and name in {s.name for s in COMMON_PARAMETERS}:
-        return CONTROLLERS
-    return (node,)
+def test_hand_written_tables_agree_with_the_declarations():
+    rows = hand_written_rows()
+    assert len(rows) >= 10, "the hand-written tables were not found: parser broken?"
+    for row in rows:
+        assert row.name in DECLARED, f"{row.page}: '{row.name}' is no parameter of any node"
+        spec = DECLARED[row.name]
+        assert same_default(row.default, spec.default), (row.page, row.name, row.default)
+        assert row.read_only == spec.read_only, (row.page, row.name, "RO mark")
+
+
+def test_every_range_a_hand_written_table_states_is_the_declared_one():
+    """A hand-written row of a parameter with both ends states its range (``range `>= 0,
+    <= 10```, the descriptor's constraints text); no row states another."""
+    checked = 0
+    for row in hand_written_rows():
+        spec = DECLARED[row.name]
+        stated = re.findall(r"range `([^`]*)`", row.range)
+        if spec.ranged:
+            assert spec.bound in stated, (row.page, row.name, spec.bound, stated)
+            checked += 1
+        assert all(s == spec.bound for s in stated), (row.page, row.name, stated)
+    assert checked >= 5
 
 
 @pytest.mark.parametrize("node", list(NODES))
-def test_every_parameter_is_documented_with_its_default_and_read_only_mark(node):
-    rows = documented_rows()
-    for spec in NODES[node]:
-        sections = sections_of(node, spec.name)
-        found = [rows[s][spec.name] for s in sections if spec.name in rows.get(s, {})]
-        assert found, f"{node}: '{spec.name}' not documented under {sections}"
-        default, ro = found[0]
-        assert same_default(default, spec.default), (node, spec.name, default, spec.default)
-        assert ro == spec.read_only, (node, spec.name, "RO mark", ro, spec.read_only)
+def test_parameter_files_set_only_declared_parameters(node):
+    for name in parameter_files(node):
+        for entry in yaml.safe_load((CONFIG / name).read_text()).values():
+            values = entry["ros__parameters"]
+            robots = values.get("robots", []) if node == "sim_bridge" else []
+            declared = {s.name for s in NODES[node]} | {"use_sim_time"}
+            declared |= {s.name for robot in robots for s in prefixed(robot)}
+            keys = set(flat(values))
+            assert keys <= declared, (name, keys - declared)
+            assert set(robots) <= set(values), (name, "a robot without its parameters")
 
 
-def test_the_docs_list_no_parameter_that_does_not_exist():
-    declared = {s.name for specs in NODES.values() for s in specs}
-    for section, rows in documented_rows().items():
-        assert set(rows) <= declared, (section, set(rows) - declared)
-
-
-@pytest.mark.parametrize("path", sorted(CONFIG.glob("*.yaml")), ids=lambda p: p.name)
-def test_parameter_files_set_only_declared_parameters(path):
-    node = WORLDS.get(path.name) or next(
-        n for n in sorted(NODES, key=len, reverse=True) if path.stem.startswith(n)
-    )
-    for entry in yaml.safe_load(path.read_text()).values():
-        values = entry["ros__parameters"]
-        robots = values.get("robots", []) if node == "sim_bridge" else []
-        declared = {s.name for s in NODES[node]} | {"use_sim_time"}
-        declared |= {s.name for name in robots for s in prefixed(name)}
-        keys = set(flat(values))
-        assert keys <= declared, (path.name, keys - declared)
-        assert set(robots) <= set(values), (path.name, "a robot without its parameters")
-
-
-#: Parameter files of a node their name does not start with.
-WORLDS = {"two_robots.yaml": "sim_bridge"}
+def test_every_parameter_file_belongs_to_a_node():
+    claimed = {name for node in NODES for name in parameter_files(node)}
+    assert {p.name for p in CONFIG.glob("*.yaml")} == claimed
+    assert "two_robots.yaml" in parameter_files("sim_bridge")
 
 
 def flat(values: dict, prefix: str = "") -> dict:
@@ -148,10 +194,14 @@ def flat(values: dict, prefix: str = "") -> dict:
 
 def test_the_checker_sees_a_wrong_default():
     """Not vacuous: a default that differs from the schema is caught."""
-    rows = documented_rows()
-    default, _ = rows["sim_bridge"]["command_timeout"]
-    assert same_default(default, 0.1) and not same_default(default, 0.2)
-    assert set(rows) >= {"every node", *NODES}  # every node's table was found
+    row = reference_rows()["sim_bridge"]["command_timeout"]
+    assert same_default(row.default, 0.1) and not same_default(row.default, 0.2)
+    model = next(r for r in hand_written_rows() if r.name == "model_payload_mass")
+    assert same_default(model.default, 0.0) and not same_default(model.default, 1.0)
+
+
+def test_the_table_parser_keeps_escaped_pipes_in_their_cell():
+    assert cells("| `a` | `x` \\| `y` | z |") == ["`a`", "`x` | `y`", "z"]
 
 
 @pytest.mark.parametrize("node", list(NODES))
@@ -185,32 +235,3 @@ def test_constraints_are_generated_from_the_declaration():
     assert rate.constraints == "> 0, <= 100000, [Hz]"
     trigger = next(s for s in COMMON_PARAMETERS if s.name == "trigger")
     assert trigger.constraints == "one of: auto | timer | state"
-
-
-def documented_ranges() -> dict[str, list[str]]:
-    """{parameter: [the meaning cell of each row naming it]} over the parameter tables."""
-    rows: dict[str, list[str]] = {}
-    for page in ["parameters.md", *PAGES]:
-        for line in (DOC.parent / page).read_text().splitlines():
-            if line.startswith("| `"):
-                cells = [c.strip() for c in line.strip("|").split("|")]
-                for name in re.findall(r"`([a-z_]+)`", cells[0]):
-                    rows.setdefault(name, []).append(cells[-1])
-    return rows
-
-
-def test_every_declared_range_is_documented_as_the_descriptor_says_it():
-    """A parameter with both ends is documented with its range (``range `>= 0, <= 10```,
-    the descriptor's constraints text) in every row that names it; no row states another."""
-    rows = documented_ranges()
-    ranged = {s.name: s for specs in NODES.values() for s in specs if s.ranged}
-    assert len(ranged) > 30
-    for name, spec in ranged.items():
-        assert rows.get(name), name
-        for meaning in rows[name]:
-            stated = re.findall(r"range `([^`]*)`", meaning)
-            assert spec.bound in stated, (name, spec.bound, stated)
-    for name, meanings in rows.items():
-        for meaning in meanings:
-            for stated in re.findall(r"range `([^`]*)`", meaning):
-                assert name in ranged and stated == ranged[name].bound, (name, stated)

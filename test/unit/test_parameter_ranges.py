@@ -16,12 +16,13 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from joint_space_control.experiments.harness.domains import lease_domain
-from joint_space_control.experiments.scenarios import format as scenarios
 from joint_space_control.nodes.pd_gravity_controller import PDGravityControllerNode
+from joint_space_control.nodes.reference import parameter_files
+from joint_space_control.processes.domains import lease_domain
 from joint_space_control.ros.parameters import ParamSpec, declare, descriptor_range
+from joint_space_control.workbench.experiments.scenarios import format as scenarios
 from sim_bridge.parameters import prefixed
-from test.unit.test_parameter_docs import CONFIG, NODES, WORLDS, flat
+from test.unit.test_parameter_docs import CONFIG, NODES, flat
 
 ZETA = ParamSpec("zeta", 1.0, "damping ratio", dynamic=True, minimum=0.0, maximum=10.0)
 RATE = ParamSpec("rate", 1000.0, "rate", unit="Hz", minimum=0.0, exclusive=True, maximum=1e5)
@@ -102,7 +103,9 @@ def test_every_numeric_default_lies_within_its_declared_range(node):
 def test_most_numeric_parameters_carry_a_range():
     """Not vacuous: the sliders exist. Those without one are positions (the URDF's joint
     limits bound them), the base pose, CPU numbers, moments on the run's clock and sizes."""
-    unranged = {s.name for specs in NODES.values() for s in numeric(specs) if not s.ranged}
+    # the loop's nodes (the dashboard's own settings are not sliders of the page)
+    loop = {node: specs for node, specs in NODES.items() if node != "dashboard"}
+    unranged = {s.name for specs in loop.values() for s in numeric(specs) if not s.ranged}
     assert unranged == {
         "initial_positions",
         "base_position",
@@ -136,9 +139,7 @@ def _check(specs: dict[str, ParamSpec], values: dict, where: str) -> int:
 
 @pytest.mark.parametrize("path", sorted(CONFIG.glob("*.yaml")), ids=lambda p: p.name)
 def test_every_value_of_the_parameter_files_is_within_its_range(path):
-    node = WORLDS.get(path.name) or next(
-        n for n in sorted(NODES, key=len, reverse=True) if path.stem.startswith(n)
-    )
+    (node,) = [n for n in NODES if path.name in parameter_files(n)]
     for entry in yaml.safe_load(path.read_text()).values():
         values = flat(entry["ros__parameters"])
         robots = values.get("robots", []) if node == "sim_bridge" else []

@@ -1,4 +1,5 @@
-"""The practical-specification checks (experiments/judging/practical.py) on synthetic runs whose
+"""The practical-specification checks (workbench/experiments/judging/practical.py) on
+synthetic runs whose
 answer is known: each passes on the predicted numbers and fails just outside its tolerance."""
 
 from __future__ import annotations
@@ -6,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from joint_space_control.experiments.judging import practical
-from joint_space_control.experiments.judging.outcome import RunView
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
+from joint_space_control.workbench.experiments.judging import practical
+from joint_space_control.workbench.experiments.judging.outcome import RunView
 
 JOINTS = ["joint1", "joint2"]
 KP = np.array([2000.0, 1000.0])
@@ -107,8 +108,8 @@ def test_predicted_chatter_matches_the_analytic_variance_of_the_noise_through_th
     K_D n_v, A = ∂g/∂q − K_P, so Var Δδτ_i = 2 (Σ_j A_ij² σ_q² + K_D,i² σ_v²); with a backward
     difference (D = K_D/T) Δδτ_k = (A − D) n_k + (2D − A) n_{k−1} − D n_{k−2}. The simulated
     prediction (20000 samples) within 3 %."""
-    from joint_space_control.experiments.judging.boundaries import gravity_jacobian
-    from joint_space_control.experiments.judging.practical import predicted_chatter
+    from joint_space_control.workbench.experiments.judging.boundaries import gravity_jacobian
+    from joint_space_control.workbench.experiments.judging.practical import predicted_chatter
 
     sigma_q, sigma_v, period = 1e-4, 0.02, 1e-3
     kd = np.array([900.0, 300.0])

@@ -10,8 +10,8 @@ import pytest
 import yaml
 
 from joint_space_control.analysis.metrics import second_order_prediction
-from joint_space_control.experiments.judging import theory
-from joint_space_control.experiments.scenarios.format import (
+from joint_space_control.workbench.experiments.judging import theory
+from joint_space_control.workbench.experiments.scenarios.format import (
     available,
     build_reference,
     load,

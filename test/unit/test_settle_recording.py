@@ -7,10 +7,10 @@ from types import SimpleNamespace
 
 import pytest
 
-from joint_space_control.experiments.harness import loop as loop_module
-from joint_space_control.experiments.harness.loop import ClosedLoop
-from joint_space_control.experiments.harness.probe import Recording
-from joint_space_control.experiments.scenarios.format import RobotSetup
+from joint_space_control.processes import loop as loop_module
+from joint_space_control.processes.loop import ClosedLoop
+from joint_space_control.processes.probe import Recording
+from joint_space_control.workbench.experiments.scenarios.format import RobotSetup
 
 
 def settled(

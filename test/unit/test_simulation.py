@@ -11,12 +11,12 @@ import pytest
 from joint_space_control.analysis.run_metrics import analyze_bag
 from joint_space_control.control.configure import PD_GRAVITY
 from joint_space_control.control.policy import ControlPolicy, Kind, Taken
-from joint_space_control.experiments.execution.inprocess import InProcessLoop
-from joint_space_control.experiments.scenarios.format import RobotSetup
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
 from joint_space_control.simulation import Arm, Change, LoopError, World, simulate
 from joint_space_control.trajectories.reference import Trajectory
+from joint_space_control.workbench.experiments.execution.inprocess import InProcessLoop
+from joint_space_control.workbench.experiments.scenarios.format import RobotSetup
 
 ENGINES = ("pybullet", "mujoco")
 

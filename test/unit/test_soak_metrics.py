@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from joint_space_control.analysis.soak_metrics import (
+from joint_space_control.lab.soaks.soak_metrics import (
     MB,
     STEP_MB,
     STEP_WINDOW_S,

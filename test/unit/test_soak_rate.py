@@ -8,8 +8,8 @@ import math
 import pytest
 
 from joint_space_control.cli.main import main
-from joint_space_control.experiments.fault_soak import FaultSoakOptions
-from joint_space_control.experiments.soak import PHYSICS_RATE, SoakOptions, check_loop_rate
+from joint_space_control.lab.soaks.fault_soak import FaultSoakOptions
+from joint_space_control.lab.soaks.soak import PHYSICS_RATE, SoakOptions, check_loop_rate
 from joint_space_control.machine import describe, machine, python_speed_us
 
 

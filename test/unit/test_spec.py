@@ -14,8 +14,8 @@ from joint_space_control.analysis.spec import (
     judge,
     parse_spec,
 )
-from joint_space_control.experiments.judging.outcome import RunView
-from joint_space_control.experiments.judging.theory import evaluate
+from joint_space_control.workbench.experiments.judging.outcome import RunView
+from joint_space_control.workbench.experiments.judging.theory import evaluate
 from test.unit.tuning_fakes import controller_metrics
 
 

@@ -1,4 +1,4 @@
-"""jsc tune without ROS runs (tuning/): the step problem, the search space, the parameter
+"""jsc tune without ROS runs (workbench/tuning/): the step problem, the search space, the parameter
 file as a node reads it, the scenario it writes, the study's ask/tell loop with a stand-in
 runner (the theory's second-order responses), resume, failed runs and the exit codes."""
 
@@ -16,14 +16,17 @@ from optuna.trial import TrialState
 from joint_space_control.analysis.spec import parse_spec
 from joint_space_control.cli import tune as tune_cli
 from joint_space_control.cli.main import main
-from joint_space_control.experiments.scenarios import format as scenarios
-from joint_space_control.experiments.scenarios.params_file import node_parameters, with_params_file
 from joint_space_control.laws.gains import FROM_KP, FROM_OMEGA_N, choose_gains
-from joint_space_control.tuning import outputs
-from joint_space_control.tuning.problem import TuneProblem, step_inside_limits
-from joint_space_control.tuning.session import TuneOptions
-from joint_space_control.tuning.space import SearchSpace, parse_range
-from joint_space_control.tuning.study import (
+from joint_space_control.workbench.experiments.scenarios import format as scenarios
+from joint_space_control.workbench.experiments.scenarios.params_file import (
+    node_parameters,
+    with_params_file,
+)
+from joint_space_control.workbench.tuning import outputs
+from joint_space_control.workbench.tuning.problem import TuneProblem, step_inside_limits
+from joint_space_control.workbench.tuning.session import TuneOptions
+from joint_space_control.workbench.tuning.space import SearchSpace, parse_range
+from joint_space_control.workbench.tuning.study import (
     INTERRUPTED,
     best_trial,
     is_feasible,
@@ -141,8 +144,8 @@ def test_the_params_file_loads_as_the_controller_node_reads_it(tmp_path):
     from rclpy.context import Context
     from rclpy.node import Node
 
-    from joint_space_control.experiments.harness.domains import lease_domain
     from joint_space_control.nodes.controller_base import COMMON_PARAMETERS
+    from joint_space_control.processes.domains import lease_domain
     from joint_space_control.ros.parameters import ParamValues, value
 
     path, gains = _best_params(tmp_path)
@@ -323,7 +326,7 @@ def test_ctrl_c_keeps_the_finished_runs_of_its_batch_and_fails_the_others(tmp_pa
 
 
 def test_a_stored_study_refuses_other_settings(tmp_path):
-    from joint_space_control.tuning.study import SettingsMismatchError
+    from joint_space_control.workbench.tuning.study import SettingsMismatchError
 
     _study(tmp_path, 4)
     with pytest.raises(SettingsMismatchError, match="spec"):
@@ -544,7 +547,7 @@ def test_ranges_of_the_help_are_the_defaults():
 
 def test_zeta_for_overshoot_inverts_the_second_order_overshoot():
     from joint_space_control.analysis.metrics import second_order_prediction
-    from joint_space_control.tuning.design import zeta_for_overshoot
+    from joint_space_control.workbench.tuning.design import zeta_for_overshoot
 
     for percent in (0.5, 5.0, 16.3, 40.0):
         zeta = zeta_for_overshoot(percent)
@@ -555,7 +558,7 @@ def test_zeta_for_overshoot_inverts_the_second_order_overshoot():
 
 def test_the_theory_design_meets_the_spec_on_the_second_order_loop():
     from joint_space_control.analysis.spec import judge
-    from joint_space_control.tuning.design import theory_design
+    from joint_space_control.workbench.tuning.design import theory_design
 
     spec = parse_spec("overshoot<=5, settling_2pct<=0.6, rise_time<=0.5")
     space = SearchSpace(JOINTS)
@@ -566,7 +569,7 @@ def test_the_theory_design_meets_the_spec_on_the_second_order_loop():
 
 
 def test_the_theory_design_keeps_the_step_command_under_the_torque_bound():
-    from joint_space_control.tuning.design import TORQUE_MARGIN, theory_design
+    from joint_space_control.workbench.tuning.design import TORQUE_MARGIN, theory_design
 
     spec = parse_spec("overshoot<=5, peak_torque_ratio<=0.5")
     b, g, lim, dq = np.array([145.0, 22.5]), np.array([300.0, 100.0]), [2000.0, 1000.0], 0.2

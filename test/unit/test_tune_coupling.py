@@ -1,4 +1,4 @@
-"""The PD + g(q) design of ``jsc tune`` for coupled arms (tuning/design.py, space.py,
+"""The PD + g(q) design of ``jsc tune`` for coupled arms (workbench/tuning/design.py, space.py,
 session.py): the effective inertia along the step, the linearised loop it makes move as one
 second order, the time scaling of the PD + g(q) loop, the shared stage and its
 reproducibility."""
@@ -18,7 +18,7 @@ from joint_space_control.laws.gains import FROM_KP, choose_gains, pd_gains_from_
 from joint_space_control.laws.second_order import second_order_step
 from joint_space_control.model.dynamics import RobotModel
 from joint_space_control.model.robots import resolve_robot
-from joint_space_control.tuning.design import (
+from joint_space_control.workbench.tuning.design import (
     SCALE_MARGIN,
     ZETA_LADDER,
     effective_inertia,
@@ -26,8 +26,8 @@ from joint_space_control.tuning.design import (
     time_scale,
     zeta_ladder,
 )
-from joint_space_control.tuning.session import TuneOptions, prepare
-from joint_space_control.tuning.space import SearchSpace
+from joint_space_control.workbench.tuning.session import TuneOptions, prepare
+from joint_space_control.workbench.tuning.space import SearchSpace
 from test.unit.test_tune import ThreadPool
 from test.unit.tuning_fakes import FakeResult, controller_metrics
 
@@ -96,7 +96,7 @@ def test_the_coupled_linear_loop_moves_every_joint_as_one_second_order(omega_n, 
 def test_the_design_keeps_the_pd_step_command_under_the_torque_bound():
     """The PD command at the step's instant is K_P Δq = b ω_n² Δq (b: the effective inertia),
     at most 90 % of the bound: at the bound on the joint it limits, under it elsewhere."""
-    from joint_space_control.tuning.design import TORQUE_MARGIN
+    from joint_space_control.workbench.tuning.design import TORQUE_MARGIN
 
     spec = parse_spec("overshoot<=5, peak_torque_ratio<=0.5")
     b = effective_inertia(B_AIDING, [0.2] * 3)
