@@ -22,7 +22,7 @@ def python_block(text: str, after: str) -> str:
 
 
 def test_the_readme_python_example_runs_as_written(tmp_path, monkeypatch):
-    code = python_block((ROOT / "README.md").read_text(), "## Use it from Python")
+    code = python_block((ROOT / "README.md").read_text(), "### From Python")
     monkeypatch.chdir(tmp_path)
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
