@@ -69,8 +69,8 @@ from joint_space_control.lab.soaks.soak import (
     MOVE_TIME,
     PHYSICS_RATE,
     SETTLE,
+    LoopRun,
     SoakObserver,
-    check_loop_rate,
     cpu_of,
     memory_of,
     system_cpu,
@@ -136,21 +136,11 @@ QUIET = 5.0
 
 
 @dataclass(frozen=True)
-class FaultSoakOptions:
+class FaultSoakOptions(LoopRun):
     minutes: float = 60.0
     period: float = 60.0  # [s] between faults
     seed: int = 0
-    robot: str = "iiwa"
-    law: str = "inverse_dynamics"
     kinds: tuple[str, ...] = tuple(KINDS)
-    rate: float = PHYSICS_RATE  # [Hz] the plant's joint states, and so the loop's rate
-
-    def __post_init__(self) -> None:
-        check_loop_rate(self.rate)
-
-    @property
-    def seconds(self) -> float:
-        return self.minutes * 60.0
 
 
 @dataclass

@@ -114,14 +114,14 @@ def check_loop_rate(rate: float) -> None:
 
 
 @dataclass(frozen=True)
-class SoakOptions:
+class LoopRun:
+    """What every soak sets: how long it runs, the loop's robot and law, and the loop's rate
+    [Hz] (the plant's joint states: a divisor of :data:`PHYSICS_RATE`, checked)."""
+
     minutes: float = 10.0
     robot: str = "iiwa"
     law: str = "inverse_dynamics"
-    warmup: float = WARMUP  # [s]; at most a third of a short run
-    sample_period: float = SAMPLE_PERIOD
-    thresholds: Thresholds = Thresholds()
-    rate: float = PHYSICS_RATE  # [Hz] the plant's joint states, and so the loop's rate
+    rate: float = PHYSICS_RATE
 
     def __post_init__(self) -> None:
         check_loop_rate(self.rate)
@@ -129,6 +129,13 @@ class SoakOptions:
     @property
     def seconds(self) -> float:
         return self.minutes * 60.0
+
+
+@dataclass(frozen=True)
+class SoakOptions(LoopRun):
+    warmup: float = WARMUP  # [s]; at most a third of a short run
+    sample_period: float = SAMPLE_PERIOD
+    thresholds: Thresholds = Thresholds()
 
     @property
     def warmup_s(self) -> float:

@@ -31,11 +31,14 @@ from joint_space_control.control.controller import STATE_FIELDS
 from joint_space_control.recording.bag_writer import BagWriter
 from joint_space_control.ros.messages import config_message, reference_message, state_message
 from joint_space_control.ros.wire import Float64ArrayImage, JointStateImage, clock_bytes
-from joint_space_control.simulation.response import Response
 from joint_space_control.simulation.world import Arm, LoopError, World, in_namespace
 from joint_space_control.workbench.experiments.scenarios.format import RobotSetup
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
+#: The world's methods that drive a run (their refusals are the engine's errors).
+DRIVING = frozenset(
+    ("send_reference", "run_until", "positions", "gains", "set_controller", "set_plant")
+)
 
 
 class EngineError(RuntimeError):
@@ -64,56 +67,23 @@ class InProcessLoop:
         self.record = record
 
     def __getattr__(self, name: str) -> Any:
-        """The world's (``controllers``, ``plants``, ``warnings``, ``period_ns``, ...)."""
+        """The world's attributes (``controllers``, ``plants``, ``warnings``, ...) and its
+        driving methods (``send_reference``, ``run_until``, ``positions``, ``gains``,
+        ``set_controller``, ``set_plant``), whose refusals become
+        :class:`EngineError` with the same one-line reason."""
         if name == "world":  # not set: __init__ failed
             raise AttributeError(name)
-        return getattr(self.world, name)
+        found = getattr(self.world, name)
+        if name not in DRIVING:
+            return found
 
-    def send_reference(
-        self,
-        namespace: str,
-        joints: Sequence[str],
-        positions: Sequence[Sequence[float]],
-        times: Sequence[float],
-        velocities: Sequence[Sequence[float]] | None = None,
-        accelerations: Sequence[Sequence[float]] | None = None,
-    ) -> None:
-        try:
-            self.world.send_reference(
-                namespace, joints, positions, times, velocities, accelerations
-            )
-        except ValueError as err:
-            raise EngineError(str(err)) from None
+        def driving(*args: Any, **kwargs: Any) -> Any:
+            try:
+                return found(*args, **kwargs)
+            except (ValueError, LoopError) as err:
+                raise EngineError(str(err)) from None
 
-    def run_until(self, t: float) -> None:
-        try:
-            self.world.run_until(t)
-        except LoopError as err:
-            raise EngineError(str(err)) from None
-
-    def positions(self, namespace: str = "") -> np.ndarray:
-        return self.world.positions(namespace)
-
-    def gains(self, namespace: str = "") -> np.ndarray:
-        try:
-            return self.world.gains(namespace)
-        except LoopError as err:
-            raise EngineError(str(err)) from None
-
-    def set_controller(self, namespace: str, changes: Mapping[str, Any]) -> None:
-        try:
-            self.world.set_controller(namespace, changes)
-        except ValueError as err:
-            raise EngineError(str(err)) from None
-
-    def set_plant(self, changes: Mapping[str, Any]) -> None:
-        try:
-            self.world.set_plant(changes)
-        except ValueError as err:
-            raise EngineError(str(err)) from None
-
-    def response(self, namespace: str = "") -> Response:
-        return self.world.response(namespace)
+        return driving
 
     def arrays(self, namespace: str = "") -> tuple[np.ndarray, ...]:
         """The robot's published states: t [s], q, q̇, τ (the motor torque of the step
