@@ -238,6 +238,18 @@ class SimBridge(Node):
         self.owner_timeout = params.value(v, "owner_timeout")
         self.reject_factor = params.value(v, "reject_factor")
         republish = params.value(v, "republish_period")
+        self._open_world(v, names, physics_rate)
+        self._refuse_second_clock(created)
+        self._created = created
+        self._init_loop_state(v)
+        self._create_interfaces(v)
+        self._start(republish, physics_rate, publish_rate)
+
+    def _open_world(
+        self, v: params.ParamValues, names: tuple[str, ...], physics_rate: float
+    ) -> None:
+        """The world of the engine the parameters name, each robot loaded into it (the
+        world closed again when one cannot be), framed in PyBullet's window with ``gui``."""
         self.lock = threading.Lock()  # world and time, shared with the realtime thread
         # what may recur at every tick or message: one line a second per kind (throttle.py)
         self.log = ThrottledLog(self.get_logger())
@@ -258,8 +270,9 @@ class SimBridge(Node):
                 frame_view(self.world.client, bodies)
             else:  # from the side: robots placed along x stand side by side
                 frame_view(self.world.client, bodies, yaw=0.0, pitch=-15.0)
-        self._refuse_second_clock(created)
-        self._created = created
+
+    def _init_loop_state(self, v: params.ParamValues) -> None:
+        """The loop's time, the lockstep handshake, pausing, faults, latency and statistics."""
         self._foreign_clock = None  # a /clock subscription while young, to compare times
         self._listening_since = 0.0
         self._clock_ahead = False
@@ -286,6 +299,10 @@ class SimBridge(Node):
         self._polled_ns = 0  # realtime: time the physics thread spent polling the clock
         self._polled_said = 0
         self._tick_sim_ns = self.period_ns if self.mode == "lockstep" else self.physics_dt_ns
+
+    def _create_interfaces(self, v: params.ParamValues) -> None:
+        """/clock, the control path (each robot's commands, at realtime priority in realtime
+        mode), the services, /diagnostics and the commander check."""
         self._clock_pub = self.create_publisher(Clock, "/clock", CONTROL_PUBLISHER_QOS)
         self.control_path = ControlPath(self)
         # realtime: the physics thread and the command path are on time first (lockstep has
@@ -326,6 +343,9 @@ class SimBridge(Node):
             OWNER_CHECK, self._check_graph, clock=RosClock(clock_type=ClockType.STEADY_TIME)
         )
 
+    def _start(self, republish: float, physics_rate: float, publish_rate: float) -> None:
+        """Lockstep: the timers that send a state again and report a stall, and the first
+        state; realtime: the physics thread. Says what runs."""
         if self.mode == "lockstep":
             self.create_timer(republish / 4, lambda: self._republish(republish))
             self.create_timer(

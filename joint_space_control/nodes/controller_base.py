@@ -268,6 +268,12 @@ class JointController(Node):
         self._jumps_said: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
+        self._init_inputs(rate)
+        self._create_interfaces(values, spec.name)
+
+    def _init_inputs(self, rate: float) -> None:
+        """How states and references are read and kept, the command and ~/state images,
+        the safety counters, and the node clock's backward jumps."""
         self._order = JointOrder(self.joints)
         self._reader = JointStateReader(
             self._order,
@@ -312,6 +318,9 @@ class JointController(Node):
             post_callback=self._on_clock_jump,
         )
 
+    def _create_interfaces(self, values: params.ParamValues, robot: str) -> None:
+        """The publishers, the control path (references, joint states, the timer, /clock)
+        with its thread priority, /diagnostics and the plant's mode."""
         self._pub = self.create_publisher(JointState, "effort_command", CONTROL_PUBLISHER_QOS)
         self._state_pub = self.create_publisher(
             Float64MultiArray, "~/state", CONTROL_PUBLISHER_QOS
@@ -338,16 +347,16 @@ class JointController(Node):
         )  # best effort once the plant is known to run in realtime (_follow_plant)
         self._state_topic = self._state_sub.topic_name
         if self.trigger_parameter != "state":
-            self._timer = self.control_path.timer(1.0 / rate, self._on_timer)
+            self._timer = self.control_path.timer(1.0 / self._rate, self._on_timer)
         self.control_path.take_clock()  # after the states: a tick is not delayed by it
         self._diagnostics = LoopDiagnostics(
-            self, self.loop_stats, spec.name, self._diagnostic_values, self._alarm
+            self, self.loop_stats, robot, self._diagnostic_values, self._alarm
         )
         # the plant's mode, whatever the trigger: stale states are dropped only behind a
         # realtime plant (a lockstep plant waits for the answer to the state it sent)
         self._watcher = PlantModeWatcher(self, "joint_states", self._on_plant_mode)
         self.get_logger().info(
-            f"{node_name}: {spec.name}, joints {list(self.joints)}, "
+            f"{self.get_name()}: {robot}, joints {list(self.joints)}, "
             + self._trigger_text()
             + f", gains {self._gains_text()}"
         )
