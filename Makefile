@@ -6,7 +6,7 @@
 #   make system-deps   Debian packages the tests need beyond PyPI (xvfb, chromium), apt-get
 #                      for any missing
 #   make demo          short end-to-end demo into out/demo
-#   make stress        start/stop every executable 20 times with both signals (CI, ~7 min)
+#   make stress        start/stop every executable 10 times with both signals (CI, a few minutes)
 #   make fault-soak    jsc soak --faults' short form: every fault kind once (~3.5 min; CI
 #                      runs it within make test-long)
 #   make colcon-check  colcon build into build/colcon_ws and check the ament layout
@@ -125,7 +125,7 @@ test-long: venv system-deps
 browser-test: venv system-deps
 	$(PY) -m pytest -n 0 -m browser -s
 
-# Every executable started and stopped 20 times (SIGINT and SIGTERM) with its topics busy,
+# Every executable started and stopped 10 times (SIGINT and SIGTERM) with its topics busy,
 # no traceback in any output (test/stress, a few minutes; CI runs it after make test). A
 # crash in C code prints its Python stack (faulthandler).
 stress: venv
