@@ -41,6 +41,11 @@ NOT_EDITABLE = {
 _CHOICES = re.compile(r"one of: ([^,;\[\]]+)")
 
 
+#: The coarsest step of a continuous parameter's control [its unit]: typed values keep their
+#: first two decimals.
+TYPED_PRECISION = 0.01
+
+
 @dataclass(frozen=True)
 class Control:
     """What the page draws for one parameter.
@@ -68,16 +73,18 @@ class Control:
         return self.name
 
     def ui_step(self) -> float:
-        """The step the page's slider moves by: the declared one, or a thousandth of the
-        range (rounded to one significant digit) for a continuous one."""
+        """The step of the page's slider and number box, which round what is typed to it:
+        the declared one; for a continuous parameter, a hundred-thousandth of its range
+        (one significant digit) and at most :data:`TYPED_PRECISION`, so that a value typed
+        with two decimals (ω_n = 12.5) reaches the node as typed."""
         if self.step:
             return self.step
         if self.integer:
             return 1.0
         if self.minimum is None or self.maximum is None or self.maximum <= self.minimum:
             return 0.001
-        raw = (self.maximum - self.minimum) / 1000.0
-        return 10.0 ** math.floor(math.log10(raw))
+        raw = (self.maximum - self.minimum) / 1e5
+        return min(10.0 ** math.floor(math.log10(raw)), TYPED_PRECISION)
 
     def element_values(self, value: Any) -> list[Any]:
         """The current value as one item per element (a single value broadcast)."""

@@ -34,7 +34,13 @@ def test_a_continuous_range_gets_a_fine_slider_step_and_no_range_a_number_box():
     ranged = descriptor(
         "omega_n", floating_point_range=[FloatingPointRange(from_value=0.0, to_value=1000.0)]
     )
-    assert control_for(ranged, 10.0).ui_step() == pytest.approx(1.0)
+    omega = control_for(ranged, 10.0)
+    assert omega.ui_step() == pytest.approx(0.01)  # 12.5 typed is 12.5, not 12 or 13
+    assert round(12.5 / omega.ui_step()) * omega.ui_step() == pytest.approx(12.5)
+    small = descriptor(
+        "zeta", floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)]
+    )
+    assert control_for(small, 1.0).ui_step() == pytest.approx(1e-4)
     free = control_for(descriptor("x"), 3.0)
     assert (free.kind, free.minimum, free.maximum) == ("number", None, None)
 
