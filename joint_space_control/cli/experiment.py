@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
+from typing import Any
 
+from joint_space_control.cli.interrupt import cancel_pool
 from joint_space_control.workbench.experiments.scenarios import format as scenarios
 from joint_space_control.workbench.experiments.scenarios.params_file import with_params_file
 from sim_bridge.engines import ENGINES
@@ -142,25 +142,13 @@ def run(
         print(f"jsc experiment: error: {message}", file=sys.stderr)
         return 2
 
-    if run_all:
-        names = list(scenarios.available())
-    if not names:
-        return error("name a scenario, or use --all / --list")
     if jobs < 1:
         return error(f"--jobs must be >= 1, got {jobs}")
     try:
-        loaded = [scenarios.load(n) for n in names]
-        if params_file is not None:
-            loaded = [with_params_file(s, params_file) for s in loaded]
+        loaded = _scenarios(list(scenarios.available()) if run_all else names, params_file)
+        plant_engines = _plant_engines(plant_engine)
     except ValueError as err:
         return error(str(err))
-    plant_engines = [e.strip() for e in plant_engine.split(",") if e.strip()]
-    unknown = [e for e in plant_engines if e not in ENGINES]
-    if unknown or not plant_engines or len(set(plant_engines)) != len(plant_engines):
-        return error(
-            f"--plant-engine must name engines of {', '.join(ENGINES)}, each once; got "
-            f"{plant_engine!r}"
-        )
     out = out.absolute()  # the path the workers are given
 
     def log(message: str) -> None:
@@ -199,40 +187,60 @@ def run(
             print(f"{_bar(k, len(runs))} {scenario.name}{on}: {scenario.title}", flush=True)
             result = run_experiment(scenario, where, short, pool, log, engine, record)
             by_engine[plant].append(result)
-            verdict = {True: "agrees with the theory", False: "FAILED", None: "ran"}[result.passed]
-            print(f"  -> {verdict}: {result.out / 'summary.md'}", flush=True)
-            for o in result.outcomes:
-                print(
-                    f"     {'ok ' if o.passed else '?? ' if o.passed is None else 'NO '}{o.text}"
-                )
-            for e in result.errors:
-                print(f"     run failed: {e}")
+            _print_result(result)
     except KeyboardInterrupt:
-        # a second Ctrl-C must not cut the stopping short (nodes and workers would be left)
-        previous = _ignore_sigint()
-        print("\njsc experiment: interrupted, stopping the runs", file=sys.stderr, flush=True)
-        try:
-            pool.cancel()
-            pool.close()
-        finally:
-            if previous is not None:
-                signal.signal(signal.SIGINT, previous)
-        return 130
+        return cancel_pool(pool, "\njsc experiment: interrupted, stopping the runs")
     finally:
         pool.close()
     print(f"{_bar(len(runs), len(runs))} done in {time.monotonic() - started:.0f} s")
-    results = by_engine[plant_engines[0]]
     if report is not None:
         engines = by_engine if len(plant_engines) > 1 else None
-        page = results_page(results, report, short, engines)
+        page = results_page(by_engine[plant_engines[0]], report, short, engines)
         print(f"results page: {page}")
+    return _verdict(by_engine, short)
+
+
+def _scenarios(names: list[str], params_file: Path | None) -> list[Any]:
+    """The scenarios by name or file, with the parameter file's entries over them
+    (ValueError naming what is wrong)."""
+    if not names:
+        raise ValueError("name a scenario, or use --all / --list")
+    loaded = [scenarios.load(n) for n in names]
+    if params_file is not None:
+        loaded = [with_params_file(s, params_file) for s in loaded]
+    return loaded
+
+
+def _plant_engines(given: str) -> list[str]:
+    """``--plant-engine``: engines of sim_bridge, comma separated, each once."""
+    engines = [e.strip() for e in given.split(",") if e.strip()]
+    unknown = [e for e in engines if e not in ENGINES]
+    if unknown or not engines or len(set(engines)) != len(engines):
+        raise ValueError(
+            f"--plant-engine must name engines of {', '.join(ENGINES)}, each once; got {given!r}"
+        )
+    return engines
+
+
+def _print_result(result: Any) -> None:
+    verdict = {True: "agrees with the theory", False: "FAILED", None: "ran"}[result.passed]
+    print(f"  -> {verdict}: {result.out / 'summary.md'}", flush=True)
+    for o in result.outcomes:
+        print(f"     {'ok ' if o.passed else '?? ' if o.passed is None else 'NO '}{o.text}")
+    for e in result.errors:
+        print(f"     run failed: {e}")
+
+
+def _verdict(by_engine: dict[str, list[Any]], short: bool) -> int:
+    """0, or 1 naming the experiments that failed (of a short run: only broken runs, cut
+    runs cannot be judged against the theory)."""
     every = [(e, r) for e, rs in by_engine.items() for r in rs]
     named = (
         (lambda e, r: f"{r.scenario.name} [{e}]")
         if len(by_engine) > 1
         else (lambda e, r: r.scenario.name)
     )
-    if short:  # cut runs cannot be judged against the theory: only broken runs fail
+    if short:
         failed = [named(e, r) for e, r in every if r.errors]
     else:
         failed = [named(e, r) for e, r in every if r.passed is False]
@@ -240,10 +248,3 @@ def run(
         print(f"jsc experiment: {len(failed)} failed: {', '.join(failed)}", file=sys.stderr)
         return 1
     return 0
-
-
-def _ignore_sigint():
-    """Ignore SIGINT from now on (main thread only); the handler it replaced, or None."""
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGINT, signal.SIG_IGN)

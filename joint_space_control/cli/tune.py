@@ -4,9 +4,7 @@ whose trials are lockstep runs on a pool of workers (wiring only: workbench/tuni
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 import time
 from collections.abc import Callable
 from functools import partial
@@ -14,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from joint_space_control.analysis.spec import allowed
+from joint_space_control.cli.interrupt import cancel_pool
 from joint_space_control.workbench.tuning.problem import (
     CONTROLLERS,
     DEFAULT_DURATION,
@@ -47,6 +46,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     p.error = _error  # one line, exit 2, as the other errors of this command
+    _problem_arguments(p)
+    _search_arguments(p)
+    _where_arguments(p)
+    p.set_defaults(handler=_handle)
+
+
+def _problem_arguments(p: argparse.ArgumentParser) -> None:
+    """The trial: the robot, the controller and its law, the specification, the step."""
     p.add_argument("robot", help="built-in robot (planar_2dof, iiwa, panda) or a .urdf/.xacro")
     p.add_argument(
         "--controller", required=True, choices=sorted(CONTROLLERS), help="controller to tune"
@@ -66,32 +73,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         + "; "
         "e.g. 'overshoot<=5, settling_2pct<=0.8, peak_torque_ratio<=0.8'",
     )
-    p.add_argument("--trials", type=int, default=30, help="finished trials in all (default 30)")
-    p.add_argument("--jobs", type=int, default=2, help="workers of the local pool (default 2)")
-    p.add_argument(
-        "--batch",
-        type=int,
-        default=BATCH,
-        help=f"trials asked, run and told together (default {BATCH}): a seeded study "
-        "depends on it, not on --jobs or the order runs finish in; workers beyond it idle",
-    )
-    p.add_argument(
-        "--engine",
-        choices=("inprocess", "ros"),
-        default="inprocess",
-        help="where the trials run: inprocess (default; the plant and controller objects in "
-        "the worker, no ROS graph, the same numbers; the best trial is then confirmed on the "
-        "nodes before the parameter file is written) or ros (the nodes as processes)",
-    )
-    p.add_argument(
-        "--scheduler",
-        default=None,
-        help="a Dask scheduler tcp://HOST:PORT, or 'threads' (default: threads with "
-        "--engine inprocess, a local cluster with --engine ros)",
-    )
-    p.add_argument(
-        "--out", type=Path, default=None, help="output directory (out/tune/<robot>_<controller>)"
-    )
     p.add_argument(
         "--step", type=float, default=DEFAULT_STEP, help=f"step per joint [rad] ({DEFAULT_STEP})"
     )
@@ -106,6 +87,25 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="start, comma-separated per joint [rad] (default: 0, moved 10 %% of a joint's "
         "range inside its limits)",
+    )
+    p.add_argument(
+        "--package-path",
+        action="append",
+        default=[],
+        help="folder for package:// URIs of the description (repeatable)",
+    )
+    p.add_argument("--xacro-args", default="", help="'name:=value ...' for a .xacro file")
+
+
+def _search_arguments(p: argparse.ArgumentParser) -> None:
+    """The study: how many trials, the sampler and its space, the first design."""
+    p.add_argument("--trials", type=int, default=30, help="finished trials in all (default 30)")
+    p.add_argument(
+        "--batch",
+        type=int,
+        default=BATCH,
+        help=f"trials asked, run and told together (default {BATCH}): a seeded study "
+        "depends on it, not on --jobs or the order runs finish in; workers beyond it idle",
     )
     p.add_argument("--seed", type=int, default=0, help="sampler seed (0)")
     p.add_argument("--study", default=None, help="study name (<robot>_<controller>)")
@@ -129,19 +129,33 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="ζ range LO:HI, uniform (default %(default)s)",
     )
     p.add_argument(
-        "--package-path",
-        action="append",
-        default=[],
-        help="folder for package:// URIs of the description (repeatable)",
-    )
-    p.add_argument("--xacro-args", default="", help="'name:=value ...' for a .xacro file")
-    p.add_argument(
         "--no-design",
         action="store_true",
         help="start a new study from TPE's random trials, not from the second-order "
         "theory's design for the spec (the default first trial)",
     )
-    p.set_defaults(handler=_handle)
+
+
+def _where_arguments(p: argparse.ArgumentParser) -> None:
+    """Where the trials run and where the results go."""
+    p.add_argument("--jobs", type=int, default=2, help="workers of the local pool (default 2)")
+    p.add_argument(
+        "--engine",
+        choices=("inprocess", "ros"),
+        default="inprocess",
+        help="where the trials run: inprocess (default; the plant and controller objects in "
+        "the worker, no ROS graph, the same numbers; the best trial is then confirmed on the "
+        "nodes before the parameter file is written) or ros (the nodes as processes)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        help="a Dask scheduler tcp://HOST:PORT, or 'threads' (default: threads with "
+        "--engine inprocess, a local cluster with --engine ros)",
+    )
+    p.add_argument(
+        "--out", type=Path, default=None, help="output directory (out/tune/<robot>_<controller>)"
+    )
 
 
 def _error(message: str) -> None:
@@ -188,13 +202,6 @@ def _numbers(text: str, what: str) -> tuple[float, ...]:
         raise ValueError(f"{what} must be numbers separated by commas, got {text!r}") from None
 
 
-def _ignore_sigint():
-    """Ignore SIGINT from now on (main thread only); the handler it replaced, or None."""
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 def _fail(err: BaseException) -> int:
     print(f"{PROG}: error: {str(err).splitlines()[0]}", file=sys.stderr)
     return 2
@@ -222,19 +229,7 @@ def run(
         return _fail(err)
     for warning in prepared.warnings:
         log(f"warning: {warning}")
-    if pool_class is None or task is None:
-        from joint_space_control.workbench.experiments.execution.distributed import RunPool
-        from joint_space_control.workbench.experiments.execution.runner import execute_run
-
-        # a trial needs its metrics, not its figures (most of a short run's analysis)
-        pool_class, task = (
-            RunPool,
-            partial(execute_run, engine=options.engine, figures=False, record=True),
-        )
-        if confirm is None:
-            confirm = partial(execute_run, short=False, engine="ros")
-    if confirm is None:  # a stand-in task (tests): it is its own ROS engine
-        confirm = partial(_confirm_with, task)
+    pool_class, task, confirm = _runners(options.engine, pool_class, task, confirm)
     started = time.monotonic()
     problem = prepared.problem
     log(
@@ -269,21 +264,11 @@ def run(
     except SettingsMismatchError as err:
         return _fail(err)
     except KeyboardInterrupt:
-        # a second Ctrl-C must not cut the stopping short (nodes and workers would be left)
-        previous = _ignore_sigint()
-        print(
+        return cancel_pool(
+            pool,
             f"\n{PROG}: interrupted; the trials in flight are marked failed, stopping the "
             "runs. The same command resumes the study.",
-            file=sys.stderr,
-            flush=True,
         )
-        try:
-            pool.cancel()
-        finally:
-            pool.close()
-            if previous is not None:
-                signal.signal(signal.SIGINT, previous)
-        return 130
     finally:
         pool.close()
     confirmation = None
@@ -297,22 +282,50 @@ def run(
         if confirmation is not None:
             log(("" if confirmation.same else "warning: ") + confirmation.text)
     summary = write_outputs(prepared, study, description, time.monotonic() - started, confirmation)
+    return _report(summary, problem.spec, prepared.out, log)
+
+
+def _report(summary: Any, spec: Any, out: Path, log: Callable[[str], None]) -> int:
+    """Say which trial is best and where the files are; the exit code (0: the spec met)."""
     best = summary.best
     if best is None:
-        log(f"{PROG}: no trial completed; see {prepared.out / 'report.md'}")
+        log(f"{PROG}: no trial completed; see {out / 'report.md'}")
         return 1
     if summary.met:
         log(
-            f"best: trial {best.number} meets {problem.spec}: ω_n = "
+            f"best: trial {best.number} meets {spec}: ω_n = "
             + ", ".join(f"{w:.4g}" for w in best.omega_n)
             + " rad/s, ζ = "
             + ", ".join(f"{z:.3g}" for z in best.zeta)
         )
     else:
-        log(f"{PROG}: no trial met {problem.spec}; closest: {summary.closest}")
+        log(f"{PROG}: no trial met {spec}; closest: {summary.closest}")
     for path in summary.files:
         log(f"  {path}")
     return 0 if summary.met else 1
+
+
+def _runners(
+    engine: str,
+    pool_class: Callable[..., Any] | None,
+    task: Callable[..., Any] | None,
+    confirm: Callable[..., Any] | None,
+) -> tuple[Callable[..., Any], Callable[..., Any], Callable[..., Any]]:
+    """The pool, the trial's task and the confirming run: RunPool and execute_run on
+    ``engine`` (a trial recorded for the best step's figure, without its report's figures),
+    confirmed on the ROS engine; or the stand-ins given (tests), their task its own ROS
+    engine."""
+    if pool_class is None or task is None:
+        from joint_space_control.workbench.experiments.execution.distributed import RunPool
+        from joint_space_control.workbench.experiments.execution.runner import execute_run
+
+        pool_class = RunPool
+        task = partial(execute_run, engine=engine, figures=False, record=True)
+        if confirm is None:
+            confirm = partial(execute_run, short=False, engine="ros")
+    if confirm is None:
+        confirm = partial(_confirm_with, task)
+    return pool_class, task, confirm
 
 
 def _confirm_with(task: Callable[..., Any], scenario: Any, target: Any) -> Any:
