@@ -7,7 +7,7 @@ They ship inside the Python package (``joint_space_control/config/``,
 '.[pypi]'``), the editable install, a checkout on ``PYTHONPATH`` and a colcon workspace
 (``setup.py install`` puts the package data into site-packages too). The ament index is
 deliberately not consulted: it needs ``AMENT_PREFIX_PATH``, which only a sourced ROS
-workspace sets, so a pip install without one failed with ``OSError`` (issue 12). colcon
+workspace sets, and a pip install has none. colcon
 still copies the parameter files to ``share/joint_space_control/config`` for
 ``ros2 run ... --params-file`` (README), but the code never reads them from there.
 """

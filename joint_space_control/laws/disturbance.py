@@ -1,6 +1,6 @@
 r"""Where the regulators come to rest under a constant disturbance or Coulomb friction.
 
-The plant with an external wrench and friction (THEORY.md §1, issue 14):
+The plant with an external wrench and friction (THEORY.md §1):
 
     B(q) q̈ + C(q, q̇) q̇ + F q̇ + f_c + g(q) = τ + τ_ext,    τ_ext = J(q)ᵀ w = −J(q)ᵀ h_e
 

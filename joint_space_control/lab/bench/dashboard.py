@@ -1,4 +1,4 @@
-"""The dashboard beside the loop (issue 24): the same loop measured without and with the
+"""The dashboard beside the loop: the same loop measured without and with the
 dashboard node running and its page open in a browser, alternating in pairs.
 
 Each pair runs, in this order: lockstep (sim_bridge + the PD + g controller on
@@ -37,7 +37,7 @@ LOCKSTEP_ROBOT, LOCKSTEP_LAW = "planar_2dof", "pd_gravity"
 REALTIME_PRIORITY = 50
 #: Parameters of the controllers (and the dashboard): as users run them beside sim_bridge.
 SIM_TIME = {"use_sim_time": True}
-#: The goals of issue 24.
+#: What the dashboard must not cost the loop.
 STEPS_RATIO_GOAL = 0.95
 ON_TIME_DROP_GOAL = 0.1  # percentage points
 _TICK = os.sysconf("SC_CLK_TCK")
@@ -336,7 +336,7 @@ def summarise(
 
 
 def goals(section: dict[str, Any] | None) -> list[tuple[str, float | None, Callable]]:
-    """(goal, measured, met) of issue 24; not measured without a page (the goal is about
+    """(goal, measured, met) of the dashboard beside the loop; not measured without a page (the goal is about
     the page open), not met where the page did not show its plots beside the loop (the
     loop with a page it starved is not the loop with the page plotting)."""
     measured = section is not None and section.get("page")

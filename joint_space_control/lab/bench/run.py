@@ -472,7 +472,7 @@ def goals(result: dict[str, Any]) -> list[dict[str, Any]]:
         ),
         goal(
             "lockstep as users run it (use_sim_time, a recorder), iiwa + inverse dynamics: "
-            ">= 0.9 of the plain rclpy ping-pong (issue 25)",
+            ">= 0.9 of the plain rclpy ping-pong",
             ratio.get("as_used_over_pingpong") if ratio else None,
             lambda v: v >= 0.9,
         ),
