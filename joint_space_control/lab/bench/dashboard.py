@@ -337,8 +337,8 @@ def summarise(
 
 def goals(section: dict[str, Any] | None) -> list[tuple[str, float | None, Callable]]:
     """(goal, measured, met) of the dashboard beside the loop; not measured without a page
-    (the goal is about the page open), not met where the page did not show its plots beside the loop (the
-    loop with a page it starved is not the loop with the page plotting)."""
+    (the goal is about the page open), not met where the page did not show its plots beside
+    the loop (the loop with a page it starved is not the loop with the page plotting)."""
     measured = section is not None and section.get("page")
     starved = {kind for kind, _, _ in (section or {}).get("not_plotting", [])}
     return [
