@@ -29,6 +29,15 @@ names their sender; valid commands from another one than the owner are refused a
 else), leaves the graph, or ``~/release`` is called. Every command received is judged (a
 drained queue of 16).
 
+As a ros2_control robot (``interface: ros2_control``): ``joint_states`` as
+joint_state_broadcaster publishes it (every joint of the robot in its order, position,
+velocity, effort; stamp = simulation time) and the commands of a forward effort controller
+from ``effort_controller/commands`` (Float64MultiArray in the robot's joint order): the wrong
+size dropped with a throttled line, anyone may command, and the last command is held for
+ever (no brakes after ``command_timeout`` unless ``command_timeout`` is given), as a real
+robot holds what its controller wrote last. The brakes hold the arm before the first
+command (the controller is not active yet).
+
 Services: ``~/reset`` (initial configuration, at rest; time keeps running forward),
 ``~/pause``, ``~/resume`` and ``~/release`` (std_srvs/Trigger).
 
@@ -59,6 +68,7 @@ a third, all under one lock.
 from __future__ import annotations
 
 import array
+import math
 import os
 import signal
 import threading
@@ -81,7 +91,12 @@ from joint_space_control.ros.control_path import ControlPath
 from joint_space_control.ros.diagnostics import LoopDiagnostics
 from joint_space_control.ros.graph import node_names
 from joint_space_control.ros.loop_statistics import LoopStatistics
-from joint_space_control.ros.messages import COMMAND_QOS, CONTROL_PUBLISHER_QOS, paused_message
+from joint_space_control.ros.messages import (
+    COMMAND_QOS,
+    CONTROL_PUBLISHER_QOS,
+    FORWARD_COMMAND_QOS,
+    paused_message,
+)
 from joint_space_control.ros.node_main import run_node
 from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.wire import clock_bytes
@@ -170,6 +185,13 @@ INTERFACE = (
     ),
     (
         "subscribes",
+        "effort_controller/commands",
+        "std_msgs/msg/Float64MultiArray",
+        "only with `interface: ros2_control` (instead of `effort_command` and `~/commands`): "
+        "effort [N·m] in the robot's joint order; the wrong size dropped; the last one held",
+    ),
+    (
+        "subscribes",
         "~/wrench",
         "geometry_msgs/msg/WrenchStamped",
         "an external wrench on the link `header.frame_id` names, world frame, at the link "
@@ -237,6 +259,12 @@ class SimBridge(Node):
         self.command_timeout = params.value(v, "command_timeout")
         self.owner_timeout = params.value(v, "owner_timeout")
         self.reject_factor = params.value(v, "reject_factor")
+        self.interface = params.value(v, "interface")
+        # as a ros2_control robot the last command is held for ever, unless a
+        # command_timeout is asked for
+        self._hold_commands = self.interface == "ros2_control" and "command_timeout" not in (
+            overrides
+        )
         republish = params.value(v, "republish_period")
         self._open_world(v, names, physics_rate)
         self._refuse_second_clock(created)
@@ -312,6 +340,15 @@ class SimBridge(Node):
             self.control_path.on_serve = lambda: self.realtime.configure("command path")
             self.control_path.on_executor = self.realtime.configure_executor
         for robot in self.robots:
+            if robot.ros2_control:
+                self.control_path.subscription(
+                    Float64MultiArray,
+                    robot.topics["commands"],
+                    lambda msg, info, r=robot: self._on_forward(r, msg),
+                    FORWARD_COMMAND_QOS,
+                    drain=True,
+                )
+                continue
             self.control_path.subscription(
                 JointState,
                 robot.topics["effort_command"],
@@ -410,6 +447,8 @@ class SimBridge(Node):
             for apply in updates:
                 apply()
             self.command_timeout = timeout
+            if "command_timeout" in changed:  # asked for: the brakes after it, again
+                self._hold_commands = False
             self.owner_timeout = owner_timeout
             self.reject_factor = reject_factor
             if "pause_at" in changed:
@@ -559,14 +598,27 @@ class SimBridge(Node):
         if tau is not None:
             self._command(robot, tau, None, received, ARRAY_COMMANDER)
 
+    def _on_forward(self, robot: SimRobot, msg: Float64MultiArray) -> None:
+        received = time.perf_counter_ns()
+        tau = robot.read_forward(msg)
+        if tau is not None:
+            self._command(robot, tau, None, received, None)
+
     def _command(
-        self, robot: SimRobot, tau: Any, stamp_ns: int | None, received: int, sender: str
+        self,
+        robot: SimRobot,
+        tau: Any,
+        stamp_ns: int | None,
+        received: int,
+        sender: str | None,
     ) -> None:
+        """A valid command from ``sender`` (None: a ros2_control robot's, no commander)."""
         with self.lock:
             # one commander at a time: its silence is measured on simulation time in
             # realtime (as the brakes), on wall time in lockstep (time waits for commands)
             now = self._t_ns * 1e-9 if self.mode == "realtime" else time.monotonic()
-            if not robot.admit(sender, now, max(self.owner_timeout, self.command_timeout)):
+            timeout = max(self.owner_timeout, self.command_timeout)
+            if sender is not None and not robot.admit(sender, now, timeout):
                 return
             if self.mode == "realtime":
                 robot.tau, robot.tau_t_ns = tau, self._t_ns
@@ -712,8 +764,9 @@ class SimBridge(Node):
     def _physics_step(self) -> None:
         """One physics step of the world: each robot under its command or its brakes."""
         t = self._t_ns * 1e-9
+        timeout = math.inf if self._hold_commands else self.command_timeout
         for robot in self.robots:
-            robot.begin_tick(self._t_ns, self.command_timeout)
+            robot.begin_tick(self._t_ns, timeout)
         for robot in self.robots:
             robot.apply(0, t)
         try:

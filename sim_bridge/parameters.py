@@ -21,6 +21,11 @@ from sim_bridge.engines import DEFAULT_ENGINE, ENGINES
 from sim_bridge.wrench import PROFILES
 
 MODES = ("realtime", "lockstep")
+#: How the plant is commanded (``interface``): sim_bridge's own topics, or as a ros2_control
+#: robot with a forward effort controller.
+INTERFACES = ("sim_bridge", "ros2_control")
+#: The command topic of ``interface: ros2_control`` (the forward effort controller's).
+ROS2_CONTROL_COMMANDS = "effort_controller/commands"
 POSITIVE = {"minimum": 0.0, "exclusive": True}
 NONNEGATIVE = {"minimum": 0.0}
 
@@ -89,6 +94,17 @@ WORLD_PARAMETERS = params.REALTIME_PARAMETERS + (
     ),
     params.ParamSpec("gui", False, "Open the PyBullet GUI", read_only=True),
     params.REJECT_FACTOR,
+    params.ParamSpec(
+        "interface",
+        "sim_bridge",
+        "sim_bridge: commands on effort_command and ~/commands, one commander, brakes after "
+        "command_timeout; ros2_control: as a ros2_control robot with joint_state_broadcaster "
+        "and a forward effort controller: commands on effort_controller/commands (robot "
+        "joint order, wrong size dropped), the last one held (brakes only before the first, "
+        "and after command_timeout only when it is given)",
+        read_only=True,
+        choices=INTERFACES,
+    ),
     params.ParamSpec(
         "robots",
         [],
@@ -190,6 +206,13 @@ PLANT_PARAMETERS = (
         **NONNEGATIVE,
         maximum=float(2**32 - 1),
         step=1.0,
+    ),
+    params.ParamSpec(
+        "gravity_compensated_by_hardware",
+        False,
+        "The robot adds g(q) (the URDF model's, without payload_mass) to every command it "
+        "receives, at every physics step, before the clamp to the effort limits",
+        read_only=True,
     ),
     params.ParamSpec(
         "measure_velocity",

@@ -9,6 +9,11 @@ another commander than the owner: refused, :mod:`sim_bridge.ownership`), the bra
 after ``command_timeout`` without a valid command), ``<ns>/sim_bridge/wrench`` and
 ``<ns>/sim_bridge/release``. With one robot the namespace is the node's own: the topics are
 ``joint_states``, ``effort_command``, ``~/commands``, ``~/wrench``, ``~/release`` as always.
+
+As a ros2_control robot (the world's ``interface: ros2_control``) the commands come from
+``<ns>/effort_controller/commands`` only (Float64MultiArray in the robot's joint order, as
+the forward effort controller writes them): anyone may send them (no commander), a message
+of the wrong size is dropped with a throttled line, and the last one is held.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from joint_space_control.ros.messages import (
 )
 from joint_space_control.ros.wire import JointStateImage, JointStateReader
 from sim_bridge.ownership import ARRAY_COMMANDER, CommandOwnership
+from sim_bridge.parameters import ROS2_CONTROL_COMMANDS
 from sim_bridge.robot_plant import RobotPlant
 from sim_bridge.torque_plant import TorqueWorld
 
@@ -83,11 +89,16 @@ class SimRobot:
         self.image = JointStateImage(self.joints, (n, velocities, n))
         self._truth = JointStateImage(self.joints)
         #: the topics as a log line names them (relative, as given)
-        self.names = {t: prefix + t for t in ("joint_states", "effort_command")}
+        #: as a ros2_control robot: commands from the forward effort controller's topic
+        self.ros2_control = node.interface == "ros2_control"
+        command = prefix + (ROS2_CONTROL_COMMANDS if self.ros2_control else "effort_command")
+        self.names = {"joint_states": prefix + "joint_states", "effort_command": command}
         self.topics = {
             "joint_states": node.resolve_topic_name(prefix + "joint_states"),
-            "effort_command": node.resolve_topic_name(prefix + "effort_command"),
-            "commands": node.resolve_topic_name(self.private + "commands"),
+            "effort_command": node.resolve_topic_name(command),
+            "commands": node.resolve_topic_name(
+                command if self.ros2_control else self.private + "commands"
+            ),
         }
         self.state_pub = node.create_publisher(
             JointState, prefix + "joint_states", CONTROL_PUBLISHER_QOS
@@ -154,6 +165,23 @@ class SimRobot:
             self._throttled("array", self._say("rejected command array: {}"), err)
             return None
         return None if self._absurd(tau) else tau
+
+    def read_forward(self, msg: Float64MultiArray) -> np.ndarray | None:
+        """τ of a forward command controller's array (one value per joint, in the robot's
+        joint order), else None: the wrong size is dropped as that controller drops it, a
+        non-finite or absurd one is rejected (each counted, with a throttled line)."""
+        if len(msg.data) != self.n:
+            self.counts["rejected.commands"] += 1
+            self._throttled(
+                "size",
+                self._say("dropped a command of {} values on {}: the robot has {} joints {}"),
+                len(msg.data),
+                self.names["effort_command"],
+                self.n,
+                list(self.joints),
+            )
+            return None
+        return self.read_array(msg)
 
     def _absurd(self, tau: np.ndarray) -> bool:
         """A command beyond ``reject_factor`` × the effort limits: rejected and counted (its

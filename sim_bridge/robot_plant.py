@@ -68,6 +68,8 @@ class RobotPlant:
             base_orientation=quaternion(params.value(values, "base_rpy")),
         )
         self.plant.set_torque_rate_limit(params.value(values, "max_torque_rate", n))
+        if params.value(values, "gravity_compensated_by_hardware"):  # the URDF's g(q)
+            self.plant.set_gravity_compensation(model.gravity)
         for warning in self.plant.warnings:
             warn(warning)
         self.plant.set_coulomb_friction(*self._coulomb(values))

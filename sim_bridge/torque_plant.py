@@ -6,13 +6,16 @@ if one is set), is held over every physics sub-step of a period (zero-order hold
 viscous friction −F q̇ of each sub-step and the external wrenches (held, and scheduled on
 simulation time); the brakes hold the arm instead while no command may be applied; the
 Coulomb friction's bound per joint is F_s while |q̇| < :data:`STICTION_SPEED`, F_c above.
+A robot that compensates gravity itself (:meth:`TorquePlant.set_gravity_compensation`) adds
+g(q) of its own model to the command at every sub-step, before the clamp: its motors apply
+command + g(q), within the effort limits.
 :class:`TorquePlant` does all of that once; an engine's plant gives what only the engine
 can: its velocities, the torque it applies, its Coulomb friction and brakes, the wrench's Jᵀw.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -134,6 +137,9 @@ class TorquePlant:
         self._schedule: tuple[int, WrenchSchedule] | None = None
         self._effort = np.zeros(self.n)
         self._target = self._tau = np.zeros(self.n)  # the clamped command of the step
+        self._gravity: Callable[[np.ndarray], np.ndarray] | None = None
+        self._received = np.zeros(self.n)  # the command as received (gravity added to it)
+        self._q_now, self._dq_now, self._effort_now = (np.zeros(self.n) for _ in range(3))
 
     # -- the engine's part -------------------------------------------------------------
     def _velocities(self) -> np.ndarray:
@@ -221,6 +227,18 @@ class TorquePlant:
     def has_wrench(self) -> bool:
         return self._held is not None or self._schedule is not None
 
+    def set_gravity_compensation(self, gravity: Callable[[np.ndarray], np.ndarray] | None) -> None:
+        """A robot that adds ``gravity(q)`` [N·m] (its own model's g at the joint positions)
+        to every command, as torque-controlled arms with gravity compensation in their
+        drives do (None: it does not)."""
+        self._gravity = gravity
+
+    def _compensated(self) -> np.ndarray:
+        """The received command plus g(q) at the current positions, clamped."""
+        self.read_state(self._q_now, self._dq_now, self._effort_now)
+        tau = self._received + self._gravity(self._q_now)
+        return np.clip(tau, self._lowest_effort, self.effort_limits)
+
     def set_torque_rate_limit(self, max_rate: float | Sequence[float]) -> None:
         """Limit the change of the applied torque to ``max_rate`` [N·m/s] per joint (0: no
         limit), from whatever was applied last, braking included."""
@@ -249,13 +267,22 @@ class TorquePlant:
         self.end_torque()
 
     def begin_torque(self, tau: np.ndarray) -> None:
-        """Start a step under torque control: the command, clamped to the effort limits."""
-        self._target = np.clip(tau, self._lowest_effort, self.effort_limits)
+        """Start a step under torque control: the command (plus g(q) where the robot
+        compensates gravity), clamped to the effort limits."""
+        if self._gravity is not None:
+            self._received = np.asarray(tau, dtype=float)
+            self._target = self._compensated()
+        else:
+            self._target = np.clip(tau, self._lowest_effort, self.effort_limits)
         self._tau = self._target
 
     def apply_torque(self, k: int, t: float) -> None:
         """The motor torques (rate limit, friction) and the wrench for sub-step k, before
         the world steps."""
+        if self._gravity is not None and k:  # g(q) where the arm is at this sub-step
+            self._target = self._compensated()
+            if self._max_step is None:
+                self._tau = self._target
         tau = self._tau
         if self._max_step is not None:
             tau = limit_rate(self._target, self._effort, self._max_step)

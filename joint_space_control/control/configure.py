@@ -42,6 +42,38 @@ from joint_space_control.model.dynamics import ModelPerturbation, RobotModel
 
 #: How a controller is triggered (``trigger``): follow the plant, a timer, every state.
 TRIGGERS = ("auto", "timer", "state")
+#: How a controller commands (``command_interface``): sim_bridge's JointState on
+#: ``effort_command``, or ros2_control's forward command controller's array on ``commands``.
+COMMAND_INTERFACES = ("effort_command", "forward_command")
+
+#: How the controller talks to the robot (ros2_control, docs/parameters.md "Towards the
+#: robot"); all read at start.
+COMMAND_PARAMETERS = (
+    params.ParamSpec(
+        "command_interface",
+        "effort_command",
+        "effort_command: sensor_msgs/JointState on 'effort_command' (sim_bridge); "
+        "forward_command: std_msgs/Float64MultiArray on 'commands' in command_joints order "
+        "(ros2_control's forward effort controller: -r commands:=/<its name>/commands)",
+        read_only=True,
+        choices=COMMAND_INTERFACES,
+    ),
+    params.ParamSpec(
+        "command_joints",
+        [],
+        "forward_command: the joints of the command array, in its order (the forward "
+        "controller's 'joints'); a permutation of the controlled joints; empty: theirs",
+        read_only=True,
+        kind="names",
+    ),
+    params.ParamSpec(
+        "gravity_compensated_by_hardware",
+        False,
+        "The robot adds g(q) itself: the command leaves the model's ĝ(q) at the measured q "
+        "out (the law's torque, clamped, minus ĝ(q)); ~/state still shows the law's split",
+        read_only=True,
+    ),
+)
 
 #: The parameters of every controller node, before those of its law.
 COMMON_PARAMETERS = (
@@ -168,6 +200,7 @@ COMMON_PARAMETERS = (
         ),
     )
 )
+COMMON_PARAMETERS += COMMAND_PARAMETERS
 MODEL_PARAMETERS = ("model_mass_scale", "model_payload_mass", "model_friction", "model_gravity")
 
 
@@ -180,6 +213,33 @@ def sampling(values: params.ParamValues, trigger: str, rate: float) -> Sampling:
         params.value(values, "reference_derivatives"),
         1.0 / rate if trigger == "state" else 0.0,
     )
+
+
+def command_order(values: params.ParamValues, joints: tuple[str, ...]) -> tuple[int, ...]:
+    """For each entry of the command array (``command_joints``, default the controlled
+    ``joints``), its index among ``joints``; ValueError unless ``command_joints`` is a
+    permutation of them."""
+    given = params.value(values, "command_joints")
+    if not given:
+        return tuple(range(len(joints)))
+    duplicated = sorted({j for j in given if given.count(j) > 1})
+    unknown = [j for j in given if j not in joints]
+    missing = [j for j in joints if j not in given]
+    if duplicated or unknown or missing:
+        problems = [
+            f"{what} {names}"
+            for what, names in (
+                ("duplicated", duplicated),
+                ("unknown", unknown),
+                ("missing", missing),
+            )
+            if names
+        ]
+        raise ValueError(
+            f"'command_joints' must be a permutation of the controlled joints {list(joints)}: "
+            + ", ".join(problems)
+        )
+    return tuple(joints.index(j) for j in given)
 
 
 def model_perturbation(values: params.ParamValues) -> ModelPerturbation:
@@ -305,7 +365,10 @@ class ControllerKind:
         model = self.model(values) if model is None else model
         rate = params.value(values, "rate")
         return self.core(
-            self.config_from(values, model), model.effort_limits, sampling(values, trigger, rate)
+            self.config_from(values, model),
+            model.effort_limits,
+            sampling(values, trigger, rate),
+            gravity_by_hardware=params.value(values, "gravity_compensated_by_hardware"),
         )
 
 

@@ -3,6 +3,7 @@
     step(t, q, q̇) → new control period? (else: the held step) → velocity (measured or
                   estimated) → reference sample (q_d, q̇_d, q̈_d) at t → law → τ split
                   → non-finite gate → τ clamped to ±effort limits → law state updated
+                  → command = τ (− ĝ(q) when the robot compensates gravity itself)
 
 How it samples (:class:`~joint_space_control.control.sampling.Sampling`, swapped whole with
 :meth:`Controller.set_sampling`): the velocity the law uses (the measured q̇, or an estimate
@@ -18,6 +19,12 @@ replaces the active reference from its start on, continuing from the sample acti
 Before any reference, the controller holds the configuration it first measured. A restart
 (time went backwards, states came back after a stop) forgets the reference, the pending
 trajectories, the law's state and gains that were designed at the start configuration.
+
+A robot that compensates gravity itself (``gravity_by_hardware``, the node's
+``gravity_compensated_by_hardware``) adds g(q) to what it receives: the command is then the
+law's torque, clamped to the effort limits as always, minus the model's ĝ(q) at the measured
+q, so that the robot's motors see the law's torque (within the limits) once it has added its
+own g(q). The step's ``tau`` and the split stay the law's (``~/state``).
 """
 
 from __future__ import annotations
@@ -40,7 +47,9 @@ class Step(NamedTuple):
     """One control step: the reference sample the law used, the torque split [N·m], the
     torque before and after clamping to the effort limits [N·m]; ``tau`` is None when the law
     gave a non-finite torque (NaN passes through a clamp): nothing must be sent then. ``q``
-    and ``dq`` are the state the law used (``dq`` measured or estimated)."""
+    and ``dq`` are the state the law used (``dq`` measured or estimated). ``command`` is
+    what is sent [N·m]: ``tau``, or ``tau`` − ĝ(q) to a robot that adds g(q) itself (None
+    as ``tau``; :attr:`sent` reads it, ``tau`` for a step built without one)."""
 
     ref: Sample
     split: TorqueSplit
@@ -48,6 +57,12 @@ class Step(NamedTuple):
     tau: np.ndarray | None
     q: np.ndarray | None = None
     dq: np.ndarray | None = None
+    command: np.ndarray | None = None
+
+    @property
+    def sent(self) -> np.ndarray | None:
+        """The command sent to the robot [N·m] (None: nothing is sent)."""
+        return self.tau if self.command is None else self.command
 
 
 #: What a controller's state record holds per computed step (its node's ``~/state``), each
@@ -98,9 +113,15 @@ class Controller:
     GAINS_NEED_CONFIGURATION = False
 
     def __init__(
-        self, config: Any, effort_limits: np.ndarray, sampling: Sampling | None = None
+        self,
+        config: Any,
+        effort_limits: np.ndarray,
+        sampling: Sampling | None = None,
+        gravity_by_hardware: bool = False,
     ) -> None:
         self.effort_limits = np.asarray(effort_limits, dtype=float)
+        #: The robot adds g(q) to the command itself (the command leaves ĝ(q) out).
+        self.gravity_by_hardware = bool(gravity_by_hardware)
         self._lowest_effort = -self.effort_limits
         self.n = self.effort_limits.size
         self.q0: np.ndarray | None = None  # configuration measured at (re)start
@@ -244,10 +265,20 @@ class Controller:
             return Step(ref, split, unclamped, None, q, dq)
         tau = np.clip(unclamped, self._lowest_effort, self.effort_limits)
         self.after_step(ref, q, unclamped, dt)
-        step = Step(ref, split, unclamped, tau, q, dq)
+        command = tau - self.config.model.gravity(q) if self.gravity_by_hardware else tau
+        step = Step(ref, split, unclamped, tau, q, dq, command)
         if periodic:
             self._held_step = step
         return step
+
+    def holding_torque(self, q: np.ndarray) -> np.ndarray:
+        """The command that holds the arm at rest at ``q`` once the controller stops
+        commanding a robot that holds its last command: ĝ(q) clamped to the effort limits
+        [N·m], or zeros to a robot that compensates gravity itself."""
+        if self.gravity_by_hardware:
+            return np.zeros(self.n)
+        gravity = self.config.model.gravity(np.asarray(q, dtype=float))
+        return np.clip(gravity, self._lowest_effort, self.effort_limits)
 
     def _velocity(self, t: float, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """The q̇ the law uses: measured, or estimated from the positions (sampling)."""

@@ -47,11 +47,15 @@ class InverseDynamicsController(Controller):
     """The model-based laws, with the reference feedforward cached per reference sample."""
 
     def __init__(
-        self, config: IDConfig, effort_limits: np.ndarray, sampling: Sampling | None = None
+        self,
+        config: IDConfig,
+        effort_limits: np.ndarray,
+        sampling: Sampling | None = None,
+        gravity_by_hardware: bool = False,
     ) -> None:
         self._ff_key: tuple[RobotModel, bytes] | None = None
         self._ff: np.ndarray | None = None
-        super().__init__(config, effort_limits, sampling)
+        super().__init__(config, effort_limits, sampling, gravity_by_hardware)
 
     def compute(self, q: np.ndarray, dq: np.ndarray, ref: Sample, dt: float) -> TorqueSplit:
         config = self.config

@@ -47,11 +47,15 @@ class PDGravityController(Controller):
     GAINS_NEED_CONFIGURATION = True
 
     def __init__(
-        self, config: PDConfig, effort_limits: np.ndarray, sampling: Sampling | None = None
+        self,
+        config: PDConfig,
+        effort_limits: np.ndarray,
+        sampling: Sampling | None = None,
+        gravity_by_hardware: bool = False,
     ) -> None:
         self._g_des_key: tuple[RobotModel, bytes] | None = None
         self._g_des: np.ndarray | None = None
-        super().__init__(config, effort_limits, sampling)
+        super().__init__(config, effort_limits, sampling, gravity_by_hardware)
 
     def design_gains(self, config: PDConfig, q0: np.ndarray) -> PDConfig:
         inertia = np.diag(config.model.inertia(q0))

@@ -57,8 +57,14 @@ class Answer(NamedTuple):
 
     @property
     def tau(self) -> np.ndarray | None:
-        """The command [N·m] (None: nothing is sent)."""
+        """The law's torque, clamped [N·m] (None: nothing is sent)."""
         return None if self.step is None else self.step.tau
+
+    @property
+    def command(self) -> np.ndarray | None:
+        """The command sent [N·m]: ``tau``, minus ĝ(q) to a robot that compensates gravity
+        itself (None: nothing is sent)."""
+        return None if self.step is None else self.step.sent
 
 
 class Taken(Enum):

@@ -6,8 +6,17 @@ torque split from the measured state and the reference sample. Everything here i
 handling and bookkeeping; the maths is in :mod:`joint_space_control.laws`.
 
 Topics (relative names): subscribes ``joint_states`` and ``reference``; publishes
-``effort_command``, ``~/state`` (every tick), ``~/config`` (latched JSON, at start and
-after every accepted parameter change) and the loop statistics on ``/diagnostics``.
+``effort_command`` (or ``commands`` with ``command_interface: forward_command``), ``~/state``
+(every tick), ``~/config`` (latched JSON, at start and after every accepted parameter
+change) and the loop statistics on ``/diagnostics``.
+
+Towards a ros2_control robot (``command_interface: forward_command``): the command is a
+std_msgs/Float64MultiArray on ``commands`` in ``command_joints`` order, as the forward
+effort controller takes it, and such a robot holds its last command for ever. So whenever
+this node stops commanding (stale states, a non-finite torque, a state it cannot answer,
+Ctrl-C or SIGTERM) it first sends the command that holds the arm at rest where it was last
+measured (:meth:`~joint_space_control.control.controller.Controller.holding_torque`: ĝ(q),
+or zeros to a robot that compensates gravity itself) and says so in one line.
 
 The control path (references, joint states and the control timer) runs in its own wait-set
 loop (:mod:`~joint_space_control.ros.control_path`) and publishes serialized images
@@ -81,6 +90,7 @@ from joint_space_control.control.configure import (  # noqa: F401  (re-exported)
     MODEL_PARAMETERS,
     TRIGGERS,
     ControllerKind,
+    command_order,
     model_perturbation,
 )
 from joint_space_control.control.policy import ControlPolicy, Kind, Taken
@@ -98,6 +108,7 @@ from joint_space_control.ros.messages import (
     CONFIG_QOS,
     CONTROL_PUBLISHER_QOS,
     CONTROL_QOS,
+    FORWARD_COMMAND_QOS,
     REALTIME_STATE_QOS,
     REFERENCE_QOS,
     STATE_FIELDS,
@@ -113,6 +124,7 @@ from joint_space_control.ros.realtime_threads import RealtimeThreads
 from joint_space_control.ros.reference_worker import IN_THREAD_BYTES, ReferenceBuilder
 from joint_space_control.ros.wire import (
     Float64ArrayImage,
+    ForwardCommandImage,
     JointStateImage,
     JointStateReader,
     fill_images,
@@ -164,8 +176,17 @@ INTERFACE = (
         "publishes",
         "effort_command",
         "sensor_msgs/msg/JointState",
-        "names + effort [N·m] within the effort limits; stamp = the joint state answered; "
+        "names + effort [N·m] within the effort limits (minus ĝ(q) with "
+        "`gravity_compensated_by_hardware`); stamp = the joint state answered; "
         "`header.frame_id` = this node's full name (the commander)",
+    ),
+    (
+        "publishes",
+        "commands",
+        "std_msgs/msg/Float64MultiArray",
+        "instead of `effort_command` with `command_interface: forward_command`: efforts "
+        "[N·m] in `command_joints` order, as ros2_control's forward effort controller takes "
+        "them (reliable, keep last 10); the holding command ĝ(q) before it stops commanding",
     ),
     (
         "publishes",
@@ -206,6 +227,8 @@ STATE_JUMPS = (
     "joint state time goes backwards and forwards: more than one node publishes {} (two "
     "simulators?); not restarting at each jump (docs/safety.md)"
 )
+#: At shutdown, how long [s] the holding command may take to reach its subscribers.
+HOLD_ACK_TIMEOUT = 1.0
 NO_VELOCITY = (
     "rejected joint state: no velocity, and velocity_source is 'measured' (set auto, "
     "backward_difference or filtered_difference to estimate it)"
@@ -248,6 +271,8 @@ class JointController(Node):
         self._plausible = PlausibleStates(*model.position_limits, self.joints)
         self._robot_name = spec.name
         self._rate = rate = params.value(values, "rate")
+        self._interface = params.value(values, "command_interface")
+        self._command_order = command_order(values, tuple(self.joints))
         self.trigger_parameter = params.value(values, "trigger")
         # the trigger in force: "timer" | "state" | "pending" (auto, plant mode not known)
         self.trigger = "pending" if self.trigger_parameter == "auto" else self.trigger_parameter
@@ -297,9 +322,15 @@ class JointController(Node):
         # arrived after it and was taken at once), and a restart forgets those that arrived
         # before it
         # header.frame_id names the commander: the plant accepts one at a time (docs/safety.md)
-        self._command = JointStateImage(
-            self.joints, (0, 0, self.n), frame_id=self.get_fully_qualified_name()
+        self._forward = self._interface == "forward_command"
+        self._command: JointStateImage | ForwardCommandImage = (
+            ForwardCommandImage(self._command_order)
+            if self._forward
+            else JointStateImage(
+                self.joints, (0, 0, self.n), frame_id=self.get_fully_qualified_name()
+            )
         )
+        self._holding = False  # the holding command was sent; no command computed since
         self._command_bytes = b""
         self._state = Float64ArrayImage(state_message(self.joints), 1 + len(STATE_FIELDS) * self.n)
         self._silent = False
@@ -321,7 +352,10 @@ class JointController(Node):
     def _create_interfaces(self, values: params.ParamValues, robot: str) -> None:
         """The publishers, the control path (references, joint states, the timer, /clock)
         with its thread priority, /diagnostics and the plant's mode."""
-        self._pub = self.create_publisher(JointState, "effort_command", CONTROL_PUBLISHER_QOS)
+        if self._forward:  # as ros2_control's forward command controller subscribes
+            self._pub = self.create_publisher(Float64MultiArray, "commands", FORWARD_COMMAND_QOS)
+        else:
+            self._pub = self.create_publisher(JointState, "effort_command", CONTROL_PUBLISHER_QOS)
         self._state_pub = self.create_publisher(
             Float64MultiArray, "~/state", CONTROL_PUBLISHER_QOS
         )
@@ -549,7 +583,9 @@ class JointController(Node):
         )
 
     def close(self) -> None:
-        """Stop the reference thread and process (a reference being built is dropped)."""
+        """Stop the reference thread and process (a reference being built is dropped);
+        towards a robot that holds its last command, send the holding command first."""
+        self._hold("stopping", wait=True)
         self._clock_jump_handle.unregister()
         self._reference_thread.shutdown(wait=False, cancel_futures=True)
         self._reference_builder.close()
@@ -634,6 +670,7 @@ class JointController(Node):
                 )
                 self._silent = True
                 self.counts["stale.stops"] += 1
+                self._hold("no joint state")
             return
         if self._silent:
             self._log.info("commanding again", "joint states are back: commanding again")
@@ -771,16 +808,19 @@ class JointController(Node):
                 self._gravity_checked = True
                 self._say_unholdable(self._q)
             if answer.kind is Kind.HELD:  # inside a control period: the held torque answers
-                self._command.set_stamp(self._state_ns)
+                if not self._forward:
+                    self._command.set_stamp(self._state_ns)
                 self._command_bytes = self._command.to_bytes()
                 self._pub.publish(self._command_bytes)
                 return time.time_ns()
             if step is None:  # velocity_source measured, this state has none
                 self._log.error("no command", "no command: {}", answer.reason)
+                self._hold("no command")
                 return -1
             if step.tau is None:
                 self.counts["dropped.nonfinite_torques"] += 1
                 self._log.error("non-finite torque", "{}: no command sent", answer.reason)
+                self._hold("non-finite torque")
                 return -1
             factor = self.policy.reject_factor
             if beyond_bound(step.unclamped, self.effort_limits, factor):
@@ -799,6 +839,7 @@ class JointController(Node):
             fill_images(self._command, self._state if listening else None, self._state_ns, step)
             self._command_bytes = self._command.to_bytes()
             self._pub.publish(self._command_bytes)
+            self._holding = False
             sent = time.time_ns()
             if listening:
                 self._state_pub.publish(self._state.to_bytes())
@@ -810,3 +851,28 @@ class JointController(Node):
             )
             self._publish_config()
         return sent
+
+    def _hold(self, why: str, wait: bool = False) -> None:
+        """Towards a robot that holds its last command (``forward_command``): send the
+        command that holds the arm at rest at the last measured q (ĝ(q), or zeros where the
+        hardware compensates gravity) and say so, once until commands are computed again.
+        ``wait``: until the subscribers have it (at shutdown, before the publisher goes)."""
+        if not self._forward or self._q is None or self._holding:
+            return
+        tau = self.core.holding_torque(self._q)  # the model in force: swapped whole
+        self._command.write(tau)
+        self._command_bytes = self._command.to_bytes()
+        self._pub.publish(self._command_bytes)
+        self._holding = True
+        if self.core.gravity_by_hardware:
+            what = "zeros (the robot compensates gravity)"
+        else:
+            q = np.round(self._q, 4).tolist()
+            what = f"ĝ(q) = {np.round(tau, 4).tolist()} N·m at q = {q} rad"
+        text = f"{why}: sent the holding command {what}; the robot holds it"
+        if why == "stopping":
+            self.get_logger().info(text)
+        else:
+            self._log.warning("holding", text)
+        if wait:
+            self._pub.wait_for_all_acked(Duration(seconds=HOLD_ACK_TIMEOUT))

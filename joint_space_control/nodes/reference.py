@@ -143,7 +143,11 @@ def markdown_of_rst(text: str) -> str:
 
 
 def controller(executable: str, module: str) -> NodeReference:
-    from joint_space_control.control.configure import MODEL_PARAMETERS, controller_kind
+    from joint_space_control.control.configure import (
+        COMMAND_PARAMETERS,
+        MODEL_PARAMETERS,
+        controller_kind,
+    )
     from joint_space_control.nodes import controller_base
 
     kind = controller_kind(executable)
@@ -167,6 +171,13 @@ def controller(executable: str, module: str) -> NodeReference:
                     "The law",
                     "What only this controller has.",
                     _names(kind.law_parameters),
+                ),
+                (
+                    "Towards the robot",
+                    "How the command reaches it: sim_bridge's `effort_command`, or a "
+                    "ros2_control robot's forward effort controller ([Towards a "
+                    "ros2_control robot](../parameters.md#towards-a-ros2_control-robot)).",
+                    _names(COMMAND_PARAMETERS),
                 ),
                 (
                     "The controller's model",

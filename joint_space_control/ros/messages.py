@@ -50,6 +50,15 @@ COMMAND_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+#: ros2_control's forward command controller subscribes ``~/commands`` with the system
+#: default QoS (reliable, keep last 10); a controller's ``forward_command`` publisher matches
+#: it, and sim_bridge's ``interface: ros2_control`` subscribes as it does.
+FORWARD_COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 #: Publishers of the control topics (joint states, /clock, commands, controller state):
 #: reliable like :data:`CONTROL_QOS`, but the writer keeps its last 1000 samples. The loop
 #: itself only ever wants the newest; an observer that falls behind a loop running faster

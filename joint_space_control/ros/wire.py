@@ -229,6 +229,20 @@ class Float64ArrayImage:
         return bytes(self._buf)
 
 
+class ForwardCommandImage(Float64ArrayImage):
+    """The command of ros2_control's forward command controller: a Float64MultiArray of
+    efforts, no layout, ``order`` giving for each entry its index among the controlled
+    joints (``command_joints``)."""
+
+    def __init__(self, order: Sequence[int]) -> None:
+        self.order = np.asarray(order, dtype=np.intp)
+        super().__init__(Float64MultiArray(), len(self.order))
+
+    def write(self, tau: np.ndarray) -> None:
+        """The efforts [N·m], in the controlled joints' order, into the array's order."""
+        self.data[:] = tau[self.order]
+
+
 class JointStateReader:
     """Arrays of the controlled joints from raw JointState messages.
 
@@ -313,17 +327,21 @@ class JointStateReader:
 
 
 def fill_images(
-    command: JointStateImage,
+    command: JointStateImage | ForwardCommandImage,
     state: Float64ArrayImage | None,
     stamp_ns: int,
     step: Step,
 ) -> None:
-    """Write a step into the command image (effort, stamp of the state it answers) and, when
+    """Write a step's command (:attr:`~joint_space_control.control.controller.Step.sent`)
+    into the command image (effort, stamp of the state it answers; or the array) and, when
     given, the ``~/state`` image (README "Controller state": q_d, q̇_d, q̈_d, q, q̇, e, ė,
     τ feedback/model/gravity, τ before and after clamping), with the reference and the
     state (q, q̇ measured or estimated) the law used."""
-    command.effort[:] = step.tau
-    command.set_stamp(stamp_ns)
+    if isinstance(command, JointStateImage):
+        command.effort[:] = step.sent
+        command.set_stamp(stamp_ns)
+    else:  # an array without a stamp, in its own joint order
+        command.write(step.sent)
     if state is None:
         return
     data = state.data

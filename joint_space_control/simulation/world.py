@@ -284,7 +284,7 @@ class World:
             self.controllers, self.records, measured, strict=True
         ):
             answer = controlled.policy.answer(t_ns, state[2], state[3])
-            tau = answer.tau
+            tau = answer.command
             if tau is None:
                 raise LoopError(
                     f"{controlled.node}: no command: {answer.reason} (the lockstep plant "
