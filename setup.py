@@ -19,6 +19,7 @@ packages and most Python deps come from apt/rosdep and carry no PyPI metadata, s
 requirement listed there would make the colcon build's requirement checks fail.
 """
 
+import sys
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -26,6 +27,16 @@ from setuptools import find_packages, setup
 PACKAGE_NAME = "joint_space_control"
 # Parameter and scenario files: package data (read by the code) and share/ (for users).
 CONFIG = f"{PACKAGE_NAME}/config"
+
+# `ros2 run joint_space_control <exe>` and launch files' Node(package=..., executable=...)
+# look for executables in <prefix>/lib/joint_space_control/. `setup.py install/develop` (colcon)
+# write the console scripts there (setup.cfg); a wheel cannot (pip writes them into bin/), so
+# a wheel, and only a wheel (pip install, pip install -e, pip wheel, python -m build: the
+# bdist_wheel / editable_wheel commands), also carries resource/launchers/<exe>, one small
+# script per console script that runs it; never in a colcon build, where it would land on the
+# console script's own path.
+WHEEL_BUILD = bool({"bdist_wheel", "editable_wheel"} & set(sys.argv[1:]))
+LAUNCHERS = sorted(glob("resource/launchers/*")) if WHEEL_BUILD else []
 
 # Runtime dependencies when installing from PyPI (no ROS apt packages on the machine).
 PYPI_REQUIRES = [
@@ -74,8 +85,6 @@ TEST_REQUIRES = [
     # Two workers: the lockstep integration tests wait on inter-process messages more
     # than they compute, so two at a time nearly halve the suite's wall time.
     "pytest-xdist>=3.5,<4",
-    # One rerun of the page test on a browser timeout only (test_dashboard.py: a slow VM)
-    "pytest-rerunfailures>=14,<17",
     "hypothesis>=6.100,<7",
     # Pinned to one minor series: `ruff format --check` output changes between minors.
     "ruff>=0.17,<0.18",
@@ -110,6 +119,9 @@ setup(
         (f"share/{PACKAGE_NAME}/config", sorted(glob(f"{CONFIG}/*.yaml"))),
         (f"share/{PACKAGE_NAME}/config/experiments", sorted(glob(f"{CONFIG}/experiments/*.yaml"))),
         (f"share/{PACKAGE_NAME}/urdf", sorted(glob(f"{PACKAGE_NAME}/robots/urdf/*.urdf"))),
+        # `ros2 launch joint_space_control <file>` (after colcon and from a pip install)
+        (f"share/{PACKAGE_NAME}/launch", sorted(glob("launch/*.launch.py"))),
+        *([(f"lib/{PACKAGE_NAME}", LAUNCHERS)] if LAUNCHERS else []),
     ],
     install_requires=["setuptools"],
     extras_require={

@@ -47,9 +47,19 @@ for exe in "${EXECUTABLES[@]}"; do
   [[ -f "$PREFIX/lib/$PKG/$exe" && -x "$PREFIX/lib/$PKG/$exe" ]] \
     || missing+=("lib/$PKG/$exe (executable)")
 done
+# Here they are the console scripts themselves (setup.cfg), run by colcon's Python: not the
+# wheel's launchers (resource/launchers/, which run <prefix>/bin/<exe>, absent in colcon).
+for exe in "${EXECUTABLES[@]}"; do
+  f="$PREFIX/lib/$PKG/$exe"
+  if [[ -f "$f" ]] && ! head -n 1 "$f" | grep -q '^#!.*python'; then
+    missing+=("lib/$PKG/$exe as a console script (found: $(head -n 1 "$f"))")
+  fi
+done
 for f in \
   "share/ament_index/resource_index/packages/$PKG" \
   "share/$PKG/package.xml" \
+  "share/$PKG/launch/sim.launch.py" \
+  "share/$PKG/launch/controllers.launch.py" \
   "share/$PKG/config/sim_bridge.yaml" \
   "share/$PKG/config/experiments/q6_inverse_dynamics_nominal.yaml" \
   "share/$PKG/urdf/planar_2dof.urdf"; do
@@ -87,4 +97,4 @@ assert all(str(p).startswith(site) for p in found.values()), found
     exit 1
   }
 fi
-echo "colcon-check: OK ($PREFIX: ${EXECUTABLES[*]} in lib/$PKG, ament index, package.xml, config, urdf, package data)"
+echo "colcon-check: OK ($PREFIX: ${EXECUTABLES[*]} in lib/$PKG, ament index, package.xml, launch, config, urdf, package data)"

@@ -134,6 +134,31 @@ fi
 check simulate 120 python -c 'from joint_space_control.simulation import simulate
 r = simulate("planar_2dof", "pd_gravity", target=[0.5, -0.3], duration=2.0)
 assert abs(r.q[-1] - [0.5, -0.3]).max() < 1e-3, r.q[-1]'
+# `ros2 run joint_space_control <exe>` and launch files look in <prefix>/lib/joint_space_control/
+# (ament index: share/ament_index/resource_index/packages/joint_space_control): the wheel puts
+# a launcher there per console script (resource/launchers/), which runs <prefix>/bin/<exe>;
+# and the launch files under share/joint_space_control/launch/.
+EXECUTABLES=(sim_bridge pd_gravity_controller inverse_dynamics_controller trajectory_generator recorder dashboard jsc)
+[[ -f "$VENV/share/ament_index/resource_index/packages/joint_space_control" ]] \
+  || fail "no ament index marker in $VENV/share/ament_index"
+for f in sim.launch.py controllers.launch.py; do
+  [[ -f "$VENV/share/joint_space_control/launch/$f" ]] || fail "no share/joint_space_control/launch/$f"
+done
+for exe in "${EXECUTABLES[@]}"; do
+  launcher="$VENV/lib/joint_space_control/$exe"
+  [[ -f "$launcher" && -x "$launcher" ]] || fail "no executable $launcher"
+  grep -q "/\.\./\.\./bin\" .*)/$exe\"\$" "$launcher" \
+    || fail "$launcher does not run bin/$exe"
+  [[ -x "$VENV/bin/$exe" ]] || fail "no console script $VENV/bin/$exe for $launcher"
+done
+check launcher-jsc 60 "$VENV/lib/joint_space_control/jsc" --help
+grep -q "jsc experiment\|usage: jsc" "$RUN/launcher-jsc.log" || fail "lib/joint_space_control/jsc --help"
+# The plant through its launcher, as `ros2 run` starts it, stopped by Ctrl-C (SIGINT) after
+# 10 s: it must exit 0 (--preserve-status: the node's own exit status).
+check launcher-sim_bridge 60 timeout --preserve-status -s INT 10 \
+  "$VENV/lib/joint_space_control/sim_bridge" --ros-args -p mode:=lockstep
+grep -q "sim_bridge: planar_2dof" "$RUN/launcher-sim_bridge.log" \
+  || fail "lib/joint_space_control/sim_bridge did not start the plant"
 check demo 300 jsc demo --out "$RUN/demo"
 [[ -f "$RUN/demo/report/report.md" ]] || fail "jsc demo wrote no report"
 if (cd "$RUN" && "$VENV/bin/jsc" tune planar_2dof --controller pd_gravity --spec "overshoot<=5" \
@@ -152,6 +177,7 @@ check experiment 600 jsc experiment q6_inverse_dynamics_nominal --out "$RUN/expe
 [[ -f "$RUN/experiments/q6_inverse_dynamics_nominal/summary.md" ]] \
   || fail "jsc experiment wrote no summary"
 
-echo "wheel-check: OK ($(basename "$WHEEL"): import, [pypi] without dask/optuna, simulate(), tune" \
+echo "wheel-check: OK ($(basename "$WHEEL"): import, [pypi] without dask/optuna, simulate()," \
+  "lib/joint_space_control launchers and share/joint_space_control/launch, tune" \
   "refused without its extra, experiment --list, demo, experiment" \
   "q6_inverse_dynamics_nominal, from $RUN; $((SECONDS - started)) s)"
