@@ -134,8 +134,9 @@ def test_pd_gravity_through_the_contract_settles_and_a_stop_leaves_the_holding_c
     _, q, _ = loop.arrays()
     assert np.max(np.abs(q_d - q[-1])) < 1e-3, f"steady-state error {q_d - q[-1]}"
 
-    # mid-motion: a move of 5 s, the controller stopped a second into it
-    loop.probe.send_reference(JOINTS[ROBOT], [q_d + [1.0, -0.5]], [5.0])
+    # mid-motion: a move of 30 s, the controller stopped a second into it (the lockstep
+    # plant may run on by seconds of its time before the signal lands: still moving)
+    loop.probe.send_reference(JOINTS[ROBOT], [q_d + [1.0, -0.5]], [30.0])
     t_now = loop.probe.latest_time()
     loop.run_until(t_now + 1.0)
     controller = loop.group.nodes[loop.controller]
@@ -155,7 +156,7 @@ def test_pd_gravity_through_the_contract_settles_and_a_stop_leaves_the_holding_c
     candidates = [model.gravity(qk) for qk in q[-3:]]
     gaps = [np.max(np.abs(applied[-1] - g)) for g in candidates]
     assert min(gaps) < 1e-9, f"last torque {applied[-1]} is no g(q) of the last states {gaps}"
-    assert np.max(np.abs(dq[-3])) > 1e-3, "the arm should have been moving"
+    assert np.max(np.abs(dq[-3])) > 1e-5, "the arm should have been moving (at rest: ~1e-8)"
     assert np.max(np.abs(applied[-2] - applied[-1])) > 1e-6, "the stop changed the command"
 
 
