@@ -120,7 +120,12 @@ def test_quick_bench_writes_every_section(tmp_path):
     for floor in data["realtime_floor"]:
         assert {"lateness", "on_time_fraction", "policy"} <= set(floor)
     assert data["analyze"]["messages"] > 0 and data["analyze"]["seconds_per_million_messages"]
-    assert len(data["goals"]) == 12
+    assert {r["engine"] for r in data["simulate"]} == {"pybullet", "mujoco"}
+    for row in data["simulate"]:  # simulate() of 1 s: its parts add up to the whole
+        assert row["total_ms"] > 0 and row["loop_ms"] > 0 and row["runs_per_minute"] > 0
+        parts = row["build_ms"] + row["loop_ms"] + row["response_ms"]
+        assert parts == pytest.approx(row["total_ms"], rel=0.5)
+    assert len(data["goals"]) == 13
     under_hog = [g for g in data["goals"] if "CPU hog" in g["goal"]]
     # the dashboard's section has a test of its own; --quick skips the sweep
     apart = [g for g in data["goals"] if g["goal"].startswith(("dashboard", "sweep"))]
