@@ -434,15 +434,15 @@ class RobotPanel:
             for joint, (lo, hi) in zip(self.info.joints, limits, strict=True):
                 lo = lo if math.isfinite(lo) else -math.pi
                 hi = hi if math.isfinite(hi) else math.pi
-                self._targets.append(
-                    gui.add_slider(
-                        f"q_d {joint} [rad]",
-                        min=lo,
-                        max=hi,
-                        step=0.001,
-                        initial_value=min(max(0.0, lo), hi),
-                    )
+                target = gui.add_slider(
+                    f"q_d {joint} [rad]",
+                    min=lo,
+                    max=hi,
+                    step=0.001,
+                    initial_value=min(max(0.0, lo), hi),
                 )
+                target.on_update(self._target_typed)
+                self._targets.append(target)
             self._duration = gui.add_number(
                 "move duration [s]",
                 initial_value=1.0,
@@ -466,8 +466,15 @@ class RobotPanel:
             sine.on_click(lambda event: self._report(event, self._send_sinusoid()))
             self.reference_message = gui.add_markdown(" ")
 
+    def _target_typed(self, event: Any) -> None:
+        """A person set a set-point: from now on the sliders are theirs (never moved to
+        the set-point in force, which could overwrite what they typed before sending)."""
+        if event.client is not None:
+            self._targets_set = True
+
     def hold_targets(self, q_d: np.ndarray) -> None:
-        """Start the set-point sliders at the set-point in force (once)."""
+        """Start the set-point sliders at the set-point in force (once, and only before a
+        person has set one)."""
         if getattr(self, "_targets_set", True) or not np.all(np.isfinite(q_d)):
             return
         for handle, value in zip(self._targets, q_d, strict=True):
