@@ -23,6 +23,7 @@ RATE = 250.0
 
 # realtime (run alone): the loop's every tick is judged, and another test's realtime plant
 # at FIFO priority beside it takes the CPU its loop needs
+@pytest.mark.long  # the lab's soak, half a minute of realtime loop: make test-long
 @pytest.mark.realtime
 def test_short_soak_reports_every_figure(tmp_path):
     out = tmp_path / "soak"
