@@ -88,10 +88,10 @@ class InProcessLoop:
     def arrays(self, namespace: str = "") -> tuple[np.ndarray, ...]:
         """The robot's published states: t [s], q, q̇, τ (the motor torque of the step
         before), one row per state."""
-        r = self.world.response(namespace)
         states = self.world.records[self.world.names.index(namespace)].states
-        dq = np.array([s[3] for s in states]).reshape(len(states), -1)
-        return r.t, r.q, dq, r.tau_applied
+        t = np.array([s[0] for s in states], dtype=float) * 1e-9
+        q, dq, tau = (np.array([s[k] for s in states]).reshape(len(states), -1) for k in (2, 3, 4))
+        return t, q, dq, tau
 
     def close(self) -> None:
         """Write the bag when one is asked for (complete once closed), close the world
