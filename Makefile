@@ -106,7 +106,7 @@ demo: venv
 # tests that judge a realtime loop against the wall clock (marker realtime) then run one at
 # a time: beside another test's processes on two cores their loop stalls (issue 16). The
 # tests of a whole command over many runs (marker long) are left to make test-long, which
-# .ci/run runs after make test: make test stays within 10 minutes (docs/testing.md).
+# .ci/run runs after make test: make test stays within 5 minutes (docs/testing.md).
 test: venv system-deps
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .

@@ -445,24 +445,30 @@ def test_controller_stops_commanding_on_stale_states_and_resumes(rig):
     rig.wait_for_publisher("/effort_command")
     clock = rig.probe.node.get_clock()
 
-    def feed(seconds: float) -> None:
-        end = clock.now().nanoseconds + round(seconds * 1e9)
-        while clock.now().nanoseconds < end:
-            states.publish(joint_state(clock.now().nanoseconds))
-            rig.probe.spin_for(0.005)
+    feeding = [False]
 
-    feed(0.5)
+    def feed() -> None:  # every 5 ms while feeding, on the probe's own executor
+        if feeding[0]:
+            states.publish(joint_state(clock.now().nanoseconds))
+
+    rig.probe.node.create_timer(0.005, feed)
+    feeding[0] = True
+    rig.probe.spin_for(0.5)
     assert len(rig.commands) > 10
+    feeding[0] = False
     status = rig.diagnostics(node, lambda s: s["stale.stops"] == 1, timeout=20.0)
     assert status["commanding"] == 0 and status["level"] == 2
     assert "not commanding" in status["message"]
     stopped = len(rig.commands)
     rig.probe.spin_for(0.5)
     assert len(rig.commands) == stopped  # nothing sent on stale data
-    feed(0.5)
+    # the states come back and keep coming until the diagnostics (1 Hz) say so
+    feeding[0] = True
+    rig.probe.spin_for(0.5)
     assert len(rig.commands) > stopped + 10
     status = rig.diagnostics(node, lambda s: s["commanding"] == 1 and s["restarts"] == 1)
     assert status["level"] < 2
+    feeding[0] = False
     assert_all_commands_safe(rig.commands)
 
 
