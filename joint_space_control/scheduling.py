@@ -27,6 +27,7 @@ from __future__ import annotations
 import ctypes
 import errno
 import os
+import re
 import sys
 import threading
 from collections.abc import Callable, Sequence
@@ -93,6 +94,19 @@ def check_priority(value: float) -> int:
     return int(value)
 
 
+def middleware_priority(value: float, thread_priority: int) -> int:
+    """``middleware_priority`` (-1: one below ``thread_priority``, at least 1, and 0 when
+    that is 0) as an int in 0..99, else ValueError with the reason."""
+    if isinstance(value, bool) or not float(value).is_integer() or not -1 <= value <= MAX_PRIORITY:
+        raise ValueError(
+            f"'middleware_priority' must be an integer from -1 (one below thread_priority) "
+            f"to {MAX_PRIORITY}, got {value:g}"
+        )
+    if value == -1:
+        return max(thread_priority - 1, 1) if thread_priority > 0 else 0
+    return int(value)
+
+
 def check_cpus(values: Sequence[float], available: Sequence[int] | None = None) -> tuple[int, ...]:
     """``cpu_affinity`` as CPU numbers this process may use (empty: all), else ValueError."""
     usable = sorted(os.sched_getaffinity(0) if available is None else available)
@@ -137,6 +151,63 @@ def configure_this_thread(
         except (OSError, AttributeError) as err:
             refused.append(f"SCHED_FIFO priority {priority} refused: {_reason(err)}")
     return current(thread, "; ".join(refused))
+
+
+#: The middleware's threads that deliver a node's messages, by the names Fast DDS gives them:
+#: reception of each transport port (``dds.shm.<port>``, ``dds.udp.<port>``,
+#: ``dds.tcp.<port>``) and the participant's timed events (``dds.ev.<n>``: heartbeats and
+#: acknowledgements of reliable topics, under the locks a publish takes too).
+MIDDLEWARE_THREADS = re.compile(r"dds\.(shm|udp|tcp|ev)\.\d+")
+
+
+def threads_of_this_process() -> dict[int, str]:
+    """Every thread of this process: its id → its OS name (empty off Linux)."""
+    out = {}
+    try:
+        tids = os.listdir("/proc/self/task")
+    except OSError:  # pragma: no cover - not Linux
+        return out
+    for tid in tids:
+        try:
+            with open(f"/proc/self/task/{tid}/comm") as f:
+                out[int(tid)] = f.read().strip()
+        except OSError:  # ended meanwhile
+            continue
+    return out
+
+
+def configure_threads(
+    names: re.Pattern[str],
+    priority: int,
+    cpus: Sequence[int] = (),
+    *,
+    threads: Callable[[], dict[int, str]] = threads_of_this_process,
+    set_scheduler: Callable[[int, int, os.sched_param], None] | None = None,
+    set_affinity: Callable[[int, Sequence[int]], None] | None = None,
+) -> tuple[list[str], str]:
+    """Give the threads of this process whose OS names match ``names`` SCHED_FIFO at
+    ``priority`` and the ``cpus`` (empty: leave them), as :func:`configure_this_thread`
+    does for the calling thread: the threads a library started (the middleware's), which the
+    process cannot configure from inside. Returns the names configured and what was refused
+    ("" when nothing was)."""
+    set_scheduler = set_scheduler or _set_scheduler
+    set_affinity = set_affinity or os.sched_setaffinity
+    done: list[str] = []
+    refused: list[str] = []
+    for tid, name in sorted(threads().items()):
+        if not names.fullmatch(name):
+            continue
+        try:
+            if cpus:
+                set_affinity(tid, cpus)
+            set_scheduler(tid, _fifo(), os.sched_param(priority))
+        except ProcessLookupError:  # ended meanwhile
+            continue
+        except (OSError, AttributeError) as err:
+            refused.append(f"{name}: SCHED_FIFO priority {priority} refused: {_reason(err)}")
+            continue
+        done.append(name)
+    return done, "; ".join(refused[:1])
 
 
 def fifo_permitted(priority: int = 1) -> bool:

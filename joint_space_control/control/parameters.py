@@ -310,6 +310,17 @@ REALTIME_PARAMETERS = (
         step=1.0,
     ),
     ParamSpec(
+        "middleware_priority",
+        -1,
+        "SCHED_FIFO priority (1-99) of the middleware threads that deliver the node's "
+        "messages (Fast DDS's reception and event threads); -1: one below thread_priority "
+        "(normal scheduling when thread_priority is 0); 0: normal scheduling",
+        read_only=True,
+        minimum=-1.0,
+        maximum=float(scheduling.MAX_PRIORITY),
+        step=1.0,
+    ),
+    ParamSpec(
         "cpu_affinity",
         [],
         "CPUs the realtime threads may run on (empty: any the process may use)",

@@ -364,12 +364,10 @@ class JointController(Node):
         self.control_path = ControlPath(self)
         self.realtime = RealtimeThreads(self, values)
         self.control_path.on_serve = lambda: self.realtime.configure("control path")
-        if not self.get_parameter("use_sim_time").value:
-            # with use_sim_time the executor stays at normal scheduling: when it served
-            # /clock at the plant's rate, at FIFO it starved the DDS threads that deliver
-            # the joint states (measured: states missing for 0.1 s at a time with two such
-            # controllers on two cores); the control path takes /clock now, but a FIFO
-            # executor beside it has not been measured again
+        if self.realtime.middleware_priority > 0 or not self.get_parameter("use_sim_time").value:
+            # with use_sim_time and the middleware threads left normal, the executor stays
+            # normal too: at FIFO, serving /clock, it starved the DDS threads that deliver the
+            # joint states (states missing for 0.1 s at a time, two controllers on two cores)
             self.control_path.on_executor = self.realtime.configure_executor
         # The reference subscription comes first, so that a reference and a joint state
         # that are both waiting are handled in that order (deterministic lockstep start).

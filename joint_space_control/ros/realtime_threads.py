@@ -28,6 +28,11 @@ class RealtimeThreads:
         self._node = node
         self.priority = scheduling.check_priority(params.value(values, "thread_priority"))
         self.cpus = scheduling.check_cpus(params.value(values, "cpu_affinity").tolist())
+        self.middleware_priority = scheduling.middleware_priority(
+            params.value(values, "middleware_priority"), self.priority
+        )
+        self.middleware: list[str] = []
+        self._middleware_done = False
         self.threads: dict[str, scheduling.Scheduling] = {}
         self._warned = False
         self.memory_locked = False
@@ -44,12 +49,36 @@ class RealtimeThreads:
         got (INFO), or once per node what was refused and what to grant (WARN)."""
         got = scheduling.configure_this_thread(thread, self.priority, self.cpus)
         self.threads[thread] = got
+        if not self._middleware_done:
+            self._middleware_done = True
+            self.configure_middleware()
         if got.refused:
             grant = f"; {scheduling.GRANT}" if "SCHED_FIFO" in got.refused else ""
             self._warn(f"realtime thread {got.text} ({got.refused}){grant}")
         else:
             self._node.get_logger().info(f"realtime thread {got.text}")
         return got
+
+    def configure_middleware(self) -> None:
+        """The middleware's threads that deliver the node's messages, at
+        ``middleware_priority`` (called by the first realtime thread, once the node has its
+        publishers and subscriptions). A FIFO control path waits for its input as long as
+        the thread that receives it waits for a CPU: with a browser starting beside the
+        loop, the normal-priority reception threads of Fast DDS waited long enough for the
+        plant to brake (docs/performance.md "Thread priority")."""
+        if self.middleware_priority == 0:
+            return
+        done, refused = scheduling.configure_threads(
+            scheduling.MIDDLEWARE_THREADS, self.middleware_priority, self.cpus
+        )
+        self.middleware = done
+        if refused:
+            self._warn(f"middleware threads: {refused}")
+        elif done:
+            self._node.get_logger().info(
+                f"middleware threads {', '.join(done)}: SCHED_FIFO priority "
+                f"{self.middleware_priority}"
+            )
 
     def configure_executor(self) -> scheduling.Scheduling:
         """The executor thread (parameters, services, diagnostics): SCHED_FIFO at priority 1
@@ -68,7 +97,11 @@ class RealtimeThreads:
 
     def diagnostics(self) -> dict[str, Any]:
         """Policy, priority and CPUs of each configured thread, and the memory lock."""
-        values: dict[str, Any] = {"memory_locked": int(self.memory_locked)}
+        values: dict[str, Any] = {
+            "memory_locked": int(self.memory_locked),
+            "scheduling.middleware.threads": len(self.middleware),
+            "scheduling.middleware.priority": self.middleware_priority if self.middleware else 0,
+        }
         for got in self.threads.values():
             values.update(got.diagnostics())
         return values

@@ -173,3 +173,69 @@ def test_lock_memory_locks_the_process_or_says_why_not():
             "ulimit -l, or CAP_IPC_LOCK)"
         ) or answer.startswith("lock_memory refused (Cannot allocate memory)")
         assert kilobytes == 0
+
+
+@pytest.mark.parametrize(
+    ("value", "thread_priority", "expected"),
+    [(-1, 50, 49), (-1, 1, 1), (-1, 0, 0), (0, 50, 0), (70, 50, 70), (10, 0, 10)],
+)
+def test_middleware_priority_follows_thread_priority_unless_given(
+    value, thread_priority, expected
+):
+    assert scheduling.middleware_priority(value, thread_priority) == expected
+
+
+@pytest.mark.parametrize("value", [-2, 100, 1.5, True])
+def test_middleware_priority_rejected_with_the_range(value):
+    with pytest.raises(ValueError, match="'middleware_priority' must be an integer from -1"):
+        scheduling.middleware_priority(value, 50)
+
+
+def test_the_middleware_threads_are_fast_dds_reception_and_event_threads():
+    names = ["dds.shm.24415", "dds.udp.7400", "dds.tcp.9", "dds.ev.0", "dds.shm.wdog", "python"]
+    names += ["jsc-physics", "dds.fctrl"]
+    matched = [n for n in names if scheduling.MIDDLEWARE_THREADS.fullmatch(n)]
+    assert matched == ["dds.shm.24415", "dds.udp.7400", "dds.tcp.9", "dds.ev.0"]
+
+
+def test_threads_matched_by_name_are_configured_and_a_refusal_said():
+    calls = []
+
+    def set_scheduler(tid, policy, param):
+        if tid == 3:
+            raise PermissionError(errno.EPERM, "no")
+        if tid == 4:
+            raise ProcessLookupError(errno.ESRCH, "gone")
+        calls.append((tid, policy & ~os.SCHED_RESET_ON_FORK, param.sched_priority))
+
+    threads = {1: "dds.shm.1", 2: "python", 3: "dds.ev.0", 4: "dds.udp.2", 5: "dds.udp.3"}
+    done, refused = scheduling.configure_threads(
+        scheduling.MIDDLEWARE_THREADS, 49, threads=lambda: threads, set_scheduler=set_scheduler
+    )
+    assert done == ["dds.shm.1", "dds.udp.3"]  # the ended thread is not an error
+    assert calls == [(1, os.SCHED_FIFO, 49), (5, os.SCHED_FIFO, 49)]
+    assert refused == "dds.ev.0: SCHED_FIFO priority 49 refused: not permitted"
+
+
+@FIFO
+def test_a_thread_of_this_process_is_configured_by_its_name():
+    started, stop = threading.Event(), threading.Event()
+    seen: list = []
+
+    def body():
+        scheduling.name_this_thread("dds.shm.1234")
+        started.set()
+        stop.wait()
+        seen.append((os.sched_getscheduler(0), os.sched_getparam(0).sched_priority))
+
+    thread = threading.Thread(target=body)
+    thread.start()
+    started.wait()
+    try:
+        done, refused = scheduling.configure_threads(scheduling.MIDDLEWARE_THREADS, 7)
+    finally:
+        stop.set()
+        thread.join()
+    assert (done, refused) == (["dds.shm.1234"], "")
+    assert seen == [(os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, 7)]
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the caller is untouched
