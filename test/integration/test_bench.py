@@ -13,6 +13,7 @@ import pytest
 
 from joint_space_control.lab.bench.compute import PHYSICS_ROBOTS
 from joint_space_control.lab.bench.run import ENGINES, ROBOTS, SECTIONS
+from joint_space_control.lab.bench.watched import goals as watched_goals
 
 # realtime: run alone after the parallel part, since its CPU hogs would load the machine
 # under another worker's test
@@ -125,11 +126,18 @@ def test_quick_bench_writes_every_section(tmp_path):
         assert row["total_ms"] > 0 and row["loop_ms"] > 0 and row["runs_per_minute"] > 0
         parts = row["build_ms"] + row["loop_ms"] + row["response_ms"]
         assert parts == pytest.approx(row["total_ms"], rel=0.5)
-    assert len(data["goals"]) == 13
-    under_hog = [g for g in data["goals"] if "CPU hog" in g["goal"]]
-    # the dashboard's section has a test of its own; --quick skips the sweep
-    apart = [g for g in data["goals"] if g["goal"].startswith(("dashboard", "sweep"))]
-    assert len(apart) == 3 and all(g["met"] is None for g in apart)
+    assert len(data["goals"]) == 17
+    # the dashboard's section has a test of its own; --quick skips the sweep and the loop
+    # watched (minutes: measured by `jsc bench --sections watched`)
+    watched = {name for name, _value, _met in watched_goals(None)}
+    assert data["watched"] == {"skipped": "--quick: run `jsc bench --sections watched`"}
+    apart = [
+        g
+        for g in data["goals"]
+        if g["goal"].startswith(("dashboard", "sweep")) or g["goal"] in watched
+    ]
+    assert len(apart) == 7 and all(g["met"] is None for g in apart)
+    under_hog = [g for g in data["goals"] if "CPU hog" in g["goal"] and g not in apart]
     assert all(g["met"] is not None for g in data["goals"] if g not in under_hog + apart)
     # measured exactly when the prioritised case ran at SCHED_FIFO
     assert all((g["met"] is not None) == data["fifo_permitted"] for g in under_hog)

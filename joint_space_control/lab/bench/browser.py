@@ -74,6 +74,17 @@ class OpenPage:
         if "error" in answer:
             raise PageError(f"the page at {self.url} {what}: {str(answer['error'])[-500:]}")
 
+    def connected(self) -> str:
+        """ "" once the page is connected (waits for it), else why not."""
+        try:
+            self._answer("did not open")
+        except PageError as err:
+            return str(err).splitlines()[0]
+        return ""
+
+    def close(self) -> None:
+        _close(self.proc)
+
     def wait_plotting(self) -> None:
         """Until the page shows a robot's plots (raises :class:`PageError` on time-out)."""
         self.proc.stdin.write("plotting\n")
@@ -86,6 +97,18 @@ def page_open(url: str, timeout: float = 60.0, nice: int = 0) -> Iterator[OpenPa
     """The page at ``url`` open and connected in headless Chromium until leaving, the
     browser's processes at niceness ``nice`` (held: :func:`without_sys_nice`); raises
     :class:`PageError` when it does not connect within ``timeout``."""
+    page = launch(url, timeout, nice)
+    try:
+        page._answer("did not open")
+        yield page
+    finally:
+        page.close()
+
+
+def launch(url: str, timeout: float = 60.0, nice: int = 0) -> OpenPage:
+    """The browser started on ``url`` without waiting for it (as a person opens a page):
+    :meth:`OpenPage.connected` says later whether it connected; :meth:`OpenPage.close`
+    closes it."""
     proc = subprocess.Popen(
         [*without_sys_nice(), sys.executable, "-m", __name__, url, str(timeout)],
         stdin=subprocess.PIPE,
@@ -95,12 +118,7 @@ def page_open(url: str, timeout: float = 60.0, nice: int = 0) -> Iterator[OpenPa
         start_new_session=True,
         preexec_fn=(lambda: os.nice(nice)) if nice else None,  # its children inherit it
     )
-    try:
-        page = OpenPage(proc, url)
-        page._answer("did not open")
-        yield page
-    finally:
-        _close(proc)
+    return OpenPage(proc, url)
 
 
 def _close(proc: subprocess.Popen, timeout: float = 10.0) -> None:

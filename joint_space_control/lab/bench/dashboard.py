@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from joint_space_control.lab.bench import browser, ros
+from joint_space_control.lab.bench.load import cpu_hog
 from joint_space_control.processes.processes import ProcessGroup
 
 LOCKSTEP_ROBOT, LOCKSTEP_LAW = "planar_2dof", "pd_gravity"
@@ -119,11 +120,24 @@ class Beside:
     SETTLE_S = 3.0
 
     def __init__(
-        self, dashboard: bool, page: bool, log: Callable[[str], None], nice: int = 0
+        self,
+        dashboard: bool,
+        page: bool,
+        log: Callable[[str], None],
+        nice: int = 0,
+        open_at_start: bool = False,
+        hogs: int = 0,
     ) -> None:
         self.dashboard = dashboard
         self.page = page and dashboard
         self.nice = nice
+        #: The browser started as the measurement starts (a person opening the page beside
+        #: a running loop), instead of the page open and plotting before it.
+        self.open_at_start = open_at_start
+        #: CPU hogs started with the measurement (stopped with it).
+        self.hogs = hogs
+        self._load = ExitStack()
+        self._url = ""
         self._log = log
         self._browser: browser.OpenPage | None = None
         self._roots: dict[str, int] = {}
@@ -142,12 +156,16 @@ class Beside:
     @contextmanager
     def _run(self, group: ProcessGroup) -> Iterator[Beside]:
         with ExitStack() as stack:
+            stack.callback(self._load.close)
             if self.dashboard:
                 port = free_port()
                 node = group.start("dashboard", {"port": port, **SIM_TIME})
                 stack.callback(lambda: (node.stop(), group.nodes.pop(node.name, None)))
                 _wait_listening(port, group.check_alive)
-                if self.page:
+                self._url = f"http://127.0.0.1:{port}"
+                if self.page and self.open_at_start:
+                    stack.callback(lambda: self._browser and self._browser.close())
+                elif self.page:
                     self._browser = stack.enter_context(
                         browser.page_open(f"http://127.0.0.1:{port}", nice=self.nice)
                     )
@@ -157,6 +175,7 @@ class Beside:
             finally:
                 if not math.isnan(self._t0):
                     self.wall_s = time.monotonic() - self._t0
+                    self.page_connected()
                     after = _roles(self._roots, self._browser.pid if self._browser else None)
                     self.cpu_seconds = {
                         role: sum(
@@ -169,7 +188,12 @@ class Beside:
     def ready(self, check: Callable[[], None]) -> None:
         """Once the loop runs: until the page shows the robot's plots (the dashboard builds
         a robot's panel on its first joint state), or :data:`SETTLE_S` without a page."""
-        if self._browser is not None:
+        if self.page and self.open_at_start:
+            deadline = time.monotonic() + self.SETTLE_S
+            while time.monotonic() < deadline:
+                check()
+                time.sleep(0.1)
+        elif self._browser is not None:
             try:
                 self._browser.wait_plotting()
             except browser.PageError as err:
@@ -186,9 +210,21 @@ class Beside:
                 time.sleep(0.1)
 
     def start(self) -> None:
-        """The measurement starts: the processes' CPU times now."""
+        """The measurement starts: the processes' CPU times now (and the browser starts,
+        with ``open_at_start``)."""
         self._before = _roles(self._roots, self._browser.pid if self._browser else None)
         self._t0 = time.monotonic()
+        if self.hogs:
+            self._load.enter_context(cpu_hog(self.hogs))
+        if self.page and self.open_at_start:
+            self._browser = browser.launch(self._url, nice=self.nice)
+
+    def page_connected(self) -> None:
+        """With ``open_at_start``, after the measurement: whether the page connected
+        (``plotting`` False and ``not_plotting`` why, when it did not)."""
+        if self._browser is not None and self.open_at_start:
+            why = self._browser.connected()
+            self.plotting, self.not_plotting = not why, why
 
 
 def _median(values: list[float]) -> float:

@@ -282,12 +282,13 @@ def realtime(
     load: str = "quiet",
     controller_params: Mapping[str, Any] | None = None,
     beside: Beside | None = None,
+    plant_params: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """sim_bridge in realtime mode at 1 kHz with the controller answering every state, for
     ``seconds`` from the resume: the simulator's schedule, jitter and latency, the brakes,
     and the scheduling the realtime threads got (``thread_priority`` asked of both nodes;
     ``load`` only labels the row: the caller makes it). ``controller_params`` and ``beside``
-    as for :func:`lockstep`."""
+    as for :func:`lockstep`; ``plant_params`` added to sim_bridge's."""
     controller = _controller(law)
     joints = joints_of(robot)
     log(f"realtime {robot} {law}, {load}, thread_priority {thread_priority}: {seconds:g} s")
@@ -300,6 +301,7 @@ def realtime(
                 "start_paused": True,
                 "command_timeout": 0.1,
                 "thread_priority": thread_priority,
+                **(plant_params or {}),
             },
         )
         group.start(

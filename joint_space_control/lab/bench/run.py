@@ -11,7 +11,10 @@ machine's floor: a bare Python thread paced the same way), ``analyze`` (``jsc an
 per million messages) and ``sweep`` (runs per minute of a fixed sweep on a Dask LocalCluster
 of 1 and then 2 workers, and where a run's wall time goes; skipped by ``--quick``) and
 ``dashboard`` (lockstep steps/s and realtime on-time without and with the dashboard and its
-page open in a browser, in alternating pairs, with each process's CPU; bench.dashboard).
+page open in a browser, in alternating pairs, with each process's CPU; bench.dashboard) and
+``watched`` (the realtime loop while Chromium opens its page, and beside three CPU hogs,
+with the middleware threads at normal and at the default scheduling; bench.watched; skipped
+by ``--quick``).
 Ping-pong and lockstep (its loops on both engines) alternate in ``rounds`` (each row is the
 median round, ``rounds`` keeps them all). ``ratios`` and ``goals`` are derived; the CPU time
 the hypervisor took during each part (``cpu_steal_fraction``) says how much the machine
@@ -46,6 +49,7 @@ SECTIONS = (
     "analyze",
     "sweep",
     "dashboard",
+    "watched",
 )
 #: The realtime runs (and their floors): quiet and with a CPU hog on every core
 #: (bench.load), each at normal scheduling and at the nodes' default thread_priority.
@@ -105,6 +109,9 @@ class Options:
     dashboard_lockstep_seconds: float = 5.0
     dashboard_realtime_seconds: float = 10.0
     dashboard_browser_nice: int = 0  # the page's browser niceness (0: as users run one)
+    # the loop watched: pairs (middleware normal / default) of each case, each run this long
+    watched_pairs: int = 3
+    watched_seconds: float = 20.0
 
     @classmethod
     def quick(cls) -> Options:
@@ -124,6 +131,7 @@ class Options:
             dashboard_pairs=1,
             dashboard_lockstep_seconds=1.0,
             dashboard_realtime_seconds=1.0,
+            watched_pairs=0,  # minutes: `jsc bench --sections watched` measures it
         )
 
 
@@ -319,6 +327,22 @@ def run(
             measured,
             browser_nice=options.dashboard_browser_nice,
         )
+    if "watched" in sections:
+        if options.watched_pairs > 0:
+            from joint_space_control.lab.bench import watched
+
+            log("watched: the realtime loop while Chromium opens its page, and under hogs")
+            result["watched"] = watched.watched(
+                out,
+                options.watched_pairs,
+                options.watched_seconds,
+                options.realtime_robot,
+                options.realtime_law,
+                log,
+                measured,
+            )
+        else:
+            result["watched"] = {"skipped": "--quick: run `jsc bench --sections watched`"}
     result["ratios"] = ratios(result)
     result["goals"] = goals(result)
     result["duration_s"] = time.monotonic() - started
@@ -453,6 +477,7 @@ def goals(result: dict[str, Any]) -> list[dict[str, Any]]:
         return {"goal": name, "measured": value, "met": met}
 
     from joint_space_control.lab.bench.dashboard import goals as dashboard_goals
+    from joint_space_control.lab.bench.watched import goals as watched_goals
 
     return [
         goal(
@@ -513,6 +538,7 @@ def goals(result: dict[str, Any]) -> list[dict[str, Any]]:
             lambda v: v <= 60.0,
         ),
         *(goal(*row) for row in dashboard_goals(result.get("dashboard"))),
+        *(goal(*row) for row in watched_goals(result.get("watched"))),
     ]
 
 
@@ -731,6 +757,10 @@ def format_table(result: dict[str, Any]) -> str:
         from joint_space_control.lab.bench.dashboard import format_dashboard
 
         lines += format_dashboard(result["dashboard"])
+    if "watched" in result:
+        from joint_space_control.lab.bench.watched import format_watched
+
+        lines += format_watched(result["watched"])
     steal = {k: v for k, v in result.get("cpu_steal_fraction", {}).items() if v is not None}
     if steal:
         lines += [
