@@ -35,11 +35,15 @@ venv: $(STAMP)
 # uses the PEP 517 setuptools backend): pip itself writes the console scripts into
 # .venv/bin, and setup.cfg's [develop]/[install] script dirs (meant for colcon's
 # `setup.py install/develop`) do not apply. The loop below fails loudly should that change.
+# An editable wheel carries no data files, so `setup.py install_data` then puts them in the
+# venv as a wheel would: share/joint_space_control (launch files, configs, package.xml), the
+# ament index marker and lib/joint_space_control's launchers, where `ros2 run` and
+# `ros2 launch` look for the package by name.
 # Quiet: each step's output goes to $(INSTALL_LOG) (one log per install, appended step by
 # step) and one line per phase is printed; a failing step prints the log's path and its
 # last 20 lines and stops make.
 INSTALL_LOG := $(VENV)/install.log
-$(STAMP): setup.py setup.cfg
+$(STAMP): setup.py setup.cfg $(wildcard launch/*.launch.py resource/launchers/*)
 	@test -n "$(PYTHON)" || { echo "error: no python3.11 or python3 on PATH" >&2; exit 1; }
 	@log=$(INSTALL_LOG); mkdir -p $(VENV) && : >"$$log" || exit 1; \
 	step() { \
@@ -57,6 +61,7 @@ $(STAMP): setup.py setup.cfg
 	echo "venv: installing the package and its dependencies (log: $$log)"; \
 	step $(PY) -m pip install --upgrade pip; \
 	step $(PY) -m pip install -e '.[pypi,workbench,lab,test]'; \
+	step $(PY) setup.py -q install_data -d $(VENV); \
 	for exe in $(VENV_SCRIPTS); do \
 	  test -x $(VENV)/bin/$$exe || { \
 	    echo "error: $(VENV)/bin/$$exe missing after pip install -e (scripts redirected?)" >&2; \

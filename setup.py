@@ -35,7 +35,7 @@ CONFIG = f"{PACKAGE_NAME}/config"
 # bdist_wheel / editable_wheel commands), also carries resource/launchers/<exe>, one small
 # script per console script that runs it; never in a colcon build, where it would land on the
 # console script's own path.
-WHEEL_BUILD = bool({"bdist_wheel", "editable_wheel"} & set(sys.argv[1:]))
+WHEEL_BUILD = bool({"bdist_wheel", "editable_wheel", "install_data"} & set(sys.argv[1:]))
 LAUNCHERS = sorted(glob("resource/launchers/*")) if WHEEL_BUILD else []
 
 # Runtime dependencies when installing from PyPI (no ROS apt packages on the machine).
