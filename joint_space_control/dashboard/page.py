@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from joint_space_control.dashboard.controls import Control
-from joint_space_control.dashboard.series import decimate
+from joint_space_control.dashboard.series import Y_INCREMENTS, decimate, spread
 
 #: Colours of the plotted signals (uPlot strokes).
 COLOURS = {
@@ -242,6 +242,22 @@ PLOTS = (
 )
 
 
+#: The plots' options: x in seconds (not dates); the y axis ticked every 1, 2 or 5 × 10ⁿ, no
+#: finer than the 3 decimals uPlot labels ticks with, 64 px wide (room for "-0.206"); the
+#: padding viser would use. Never changed once sent: new options make viser build the chart
+#: anew, and a chart built anew while its data streams in can keep a time window that the
+#: data has left (a blank plot). viser rebuilt it at every change of the panel's width too
+#: (a scroll bar coming or going) unless the padding is given: its default is a new array at
+#: every render, which its wrapper of uPlot takes for new options.
+PLOT_SCALES = {"x": {"time": False}}
+PLOT_AXES = ({}, {"size": 64, "incrs": Y_INCREMENTS})
+PLOT_PADDING = (0, 24, 0, 0)
+#: The last series of every plot: not drawn (no stroke, no points), its values widen the
+#: data the y axis is ranged on to what the axis can label (:func:`spread`). Labelled in
+#: the legend as what it is (uPlot would call an unlabelled series "Value").
+SPREAD = {"label": "(axis)", "stroke": "rgba(0,0,0,0)", "width": 0, "points": {"show": False}}
+
+
 class RobotPanel:
     """One robot: its 3D model, its plots, its reference and push controls, and the
     parameter panels of the nodes that serve it."""
@@ -367,14 +383,17 @@ class RobotPanel:
                                     "width": 1,
                                 },
                             ]
-                        data = tuple(np.zeros(2) for _ in series)
+                        series.append(dict(SPREAD))
+                        data = [np.zeros(2) for _ in series[:-1]]
+                        data.append(spread(data[1:], 2))
                         handles.append(
                             gui.add_uplot(
-                                data,
+                                tuple(data),
                                 tuple(series),
                                 title=f"{joint} [{unit}]",
-                                scales={"x": {"time": False}},
-                                axes=({}, {"size": 64}),  # room for "-0.206"
+                                scales=PLOT_SCALES,
+                                axes=PLOT_AXES,
+                                padding=PLOT_PADDING,
                                 aspect=2.2,
                             )
                         )
@@ -384,7 +403,8 @@ class RobotPanel:
     def show_signals(self, t: np.ndarray, signals: dict[str, np.ndarray]) -> None:
         """Plot the window: ``t`` [s] and, per signal, a (samples × joints) array. A signal
         not given (no controller: no q_d) or a limit not known is hidden, not sent as NaN
-        (uPlot would take NaN for a value and lose its axis range)."""
+        (uPlot would take NaN for a value and lose its axis range). The last series widens
+        the data the y axis is ranged on to at least ``LEAST_SPAN`` (:func:`spread`)."""
         if len(t) < 2:
             return
         limits = list(self.info.effort_limits)
@@ -406,6 +426,10 @@ class RobotPanel:
                         [np.full(len(tt), lim), np.full(len(tt), -lim)] if known else [filler] * 2
                     )
                     shown += [known, known]
+                data.append(
+                    spread([d for d, v in zip(data[1:], shown, strict=True) if v], len(tt))
+                )
+                shown.append(True)
                 self._show_series(handle, shown)
                 handle.data = tuple(np.ascontiguousarray(d, dtype=np.float64) for d in data)
 

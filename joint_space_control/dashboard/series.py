@@ -3,10 +3,13 @@
 A loop at 1 kHz gives 10,000 samples per joint and signal in a 10 s window; a browser
 plot needs a few hundred. :func:`decimate` keeps, in each of its buckets, the samples where
 every series has its minimum and its maximum, so a peak (an overshoot, a torque spike) is
-never lost however far the window is thinned.
+never lost however far the window is thinned. :func:`spread` widens the data a plot's
+y axis is ranged on to what its labels can tell apart.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -78,3 +81,33 @@ def decimate(t: np.ndarray, y: np.ndarray, budget: int) -> tuple[np.ndarray, np.
         keep.extend(lo + np.argmax(chunk, axis=0))
     index = np.unique(np.asarray(keep, dtype=int))
     return t[index], y[index]
+
+
+#: The smallest span [the plot's unit: rad, N·m] of the data a plot's y axis is ranged on:
+#: flatter data (a joint at rest) is drawn in the middle of it. uPlot ranges the axis on
+#: the data, and on flatter data gave axes it could not label: ticks every 0.0001 written
+#: with its 3 decimals ("-0, -0, 0"), or, for a joint resting within 1e-9 rad of -0.3, a
+#: range rounded to nothing (no line and no tick drawn).
+LEAST_SPAN = 0.004
+#: The tick spacings a y axis may take: 1, 2 or 5 × 10ⁿ, none finer than the 3 decimals
+#: uPlot writes its tick labels with (its own list has 0.0001 and 0.0025).
+Y_INCREMENTS = tuple(float(f"{m}e{n}") for n in range(-3, 16) for m in (1, 2, 5))
+
+
+def spread(columns: Sequence[np.ndarray], n: int) -> np.ndarray:
+    """``n`` values (n ≥ 2) that, plotted beside ``columns`` and not drawn, widen the data
+    the y axis is ranged on to at least :data:`LEAST_SPAN` about its middle: alternately
+    half of it below and above. The smallest finite value of ``columns`` (no effect) when
+    they span more; zeros when they have no finite value."""
+    finite = [c[np.isfinite(c)] for c in columns]
+    finite = [c for c in finite if len(c)]
+    if not finite:
+        return np.zeros(n)
+    low = float(min(c.min() for c in finite))
+    high = float(max(c.max() for c in finite))
+    if high - low >= LEAST_SPAN:
+        return np.full(n, low)
+    middle = 0.5 * (low + high)
+    values = np.full(n, middle - 0.5 * LEAST_SPAN)
+    values[1::2] = middle + 0.5 * LEAST_SPAN
+    return values

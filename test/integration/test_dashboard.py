@@ -62,6 +62,32 @@ BROWSER_NICE = 19
 #: not be drawn yet: robot_mask).
 REDRAW_POLL_MS = 250
 REDRAW_TRY_MS = 5_000
+#: Data spanning less than this [rad] counts as spanning this (a joint at rest, drawn in the
+#: middle of an axis wider than its data): see axis_faults.
+FLAT = 0.01
+#: The y axes of the plots on show (one per joint), as uPlot drew them: uPlot writes its
+#: tick labels on the canvas, not in the DOM, so they are read from the uPlot instances that
+#: viser registers for its own end-to-end tests (window.__viserTestpoints.uplots): an
+#: axis's _values are the labels written at its _splits. With them, the axis's range, the
+#: smallest and largest value of the series drawn (not those of the series that only widens
+#: the axis, drawn 0 px wide), and the time window shown and that of the data.
+Y_AXES_JS = """() => Object.values(window.__viserTestpoints?.uplots ?? {})
+    .map(({chart}) => chart)
+    .filter(chart => chart.root.getBoundingClientRect().height > 0)
+    .map(chart => {
+        const drawn = chart.data.slice(1).filter((_, k) => {
+            const s = chart.series[k + 1];
+            return s.show && s.width > 0;
+        }).flatMap(column => Array.from(column));
+        const t = chart.data[0];
+        return {
+            title: chart.root.querySelector('.u-title')?.textContent,
+            labels: chart.axes[1]._values, ticks: chart.axes[1]._splits,
+            low: chart.scales.y.min, high: chart.scales.y.max,
+            data: [Math.min(...drawn), Math.max(...drawn)],
+            window: [chart.scales.x.min, chart.scales.x.max], times: [t[0], t[t.length - 1]],
+        };
+    })"""
 
 
 def what_the_loop_says(rig: Rig, page, references: list, configs: list[str]) -> str:  # noqa: F811
@@ -193,6 +219,19 @@ def scene_pixels(page) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
 
 
+def plots_box(page) -> dict:
+    """The box around the plots on show (the Position tab's, one per joint)."""
+    plots = page.locator(".uplot:visible")
+    first, last = plots.first.bounding_box(), plots.last.bounding_box()
+    bottom = last["y"] + last["height"]
+    return {
+        "x": first["x"],
+        "y": first["y"],
+        "width": first["width"],
+        "height": bottom - first["y"],
+    }
+
+
 def region(page, selector: str) -> bytes:
     """A PNG of the first element matching ``selector``, cut from a page screenshot (an
     element screenshot waits for a quiet page, which a live 3D view never is)."""
@@ -243,6 +282,59 @@ def robot_mask(page, title: str, least: float = DRAWN_SHARE) -> np.ndarray:
         mask = differs(hidden) & ~differs(again)
         if np.mean(mask) > least or time.monotonic() > deadline:
             return mask
+
+
+def axis_faults(axis: dict) -> list[str]:
+    """What is wrong with a plot's y axis (:data:`Y_AXES_JS`): its labels are not 2 or more
+    distinct numbers, each the value ticked; the data or the ticks are not within the axis;
+    the ticks do not span the data (to a tick spacing); they are not at the data's scale
+    (spaced more than twice the data's span, or the axis more than 3 times as wide; a span
+    below :data:`FLAT` counts as that); or the time window shown is not the data's (a blank
+    plot)."""
+    labels, ticks = axis["labels"] or [], axis["ticks"] or []
+    try:
+        values = [float(label.replace(",", "")) for label in labels]
+    except ValueError:
+        return [f"labels not numbers: {labels}"]
+    if len(set(values)) < 2 or len(set(values)) != len(values) or len(ticks) != len(values):
+        return [f"labels not 2 or more distinct numbers, one per tick: {labels} at {ticks}"]
+    step = min(abs(b - a) for a, b in zip(values, values[1:], strict=False))
+    lo, hi = axis["data"]
+    span = max(hi - lo, FLAT)
+    faults = []
+    if values != pytest.approx(ticks, abs=step / 10):
+        faults.append(f"labels {labels} do not say the values ticked, {ticks}")
+    if not axis["low"] <= lo <= hi <= axis["high"]:
+        faults.append(f"data [{lo}, {hi}] not within the axis [{axis['low']}, {axis['high']}]")
+    if not (axis["low"] - step / 10 <= min(values) and max(values) <= axis["high"] + step / 10):
+        faults.append(f"ticks {values} beyond the axis [{axis['low']}, {axis['high']}]")
+    if min(values) > lo + step or max(values) < hi - step:
+        faults.append(f"ticks {values} do not span the data [{lo}, {hi}]")
+    (start, end), (first, last) = axis["window"], axis["times"]
+    slack = 0.1 * (last - first)
+    if start is None or end is None or start > first + slack or end < last - slack:
+        faults.append(f"time window [{start}, {end}] not that of the data, [{first}, {last}]")
+    if step > 2 * span or axis["high"] - axis["low"] > 3 * span:
+        faults.append(
+            f"ticks every {step:g} on [{axis['low']}, {axis['high']}] for data [{lo}, {hi}]"
+        )
+    return faults
+
+
+def ticks_at_the_data_scale(page, what: str) -> list[dict]:
+    """The y axes of the plots on show once each is ticked at its data's scale
+    (:func:`axis_faults`), waited for up to :data:`REDRAW_TRY_MS` (a redraw under way); an
+    AssertionError saying what is wrong otherwise."""
+    deadline = time.monotonic() + REDRAW_TRY_MS / 1000
+    while True:
+        axes = page.evaluate(Y_AXES_JS)
+        faults = {a["title"]: axis_faults(a) for a in axes}
+        if axes and not any(faults.values()):
+            return axes
+        if time.monotonic() > deadline:
+            detail = "; ".join(f"{t}: {', '.join(f)}" for t, f in faults.items() if f)
+            raise AssertionError(f"{what}: {detail or 'no plot on show'} ({axes})")
+        page.wait_for_timeout(REDRAW_POLL_MS)
 
 
 _clients: dict[tuple[int, str], AsyncParameterClient] = {}
@@ -298,6 +390,10 @@ def tune_and_move(
         page, lambda: region(page, ".uplot canvas"), lambda now: now != before,
         "the position plot moving",
     )  # fmt: skip
+    # the joints at rest, within a fraction of a milliradian: each position plot ticked in
+    # distinct numbers (uPlot's own axis: "-0, -0, 0", or for a joint at rest within 1e-9
+    # rad of a round value, no tick and no line)
+    ticks_at_the_data_scale(page, "the position plots at rest")
 
     # a parameter set in the page is the node's parameter, and changes the gains in force
     rig.probe.spin_until(lambda: bool(configs), 10.0, f"{CONTROLLER}/config")
@@ -345,6 +441,12 @@ def tune_and_move(
     rig.probe.spin_until(arrived, 30.0, "the arm at the page's set-point", rig.group.check_alive)
     page.wait_for_timeout(2500)
     page.screenshot(path=str(shots / "dashboard.png"))
+    # joint2 on its way from 0 to -0.3 rad in the window (or the end of it): its plot ticked
+    # like -0.3, -0.2, -0.1, 0; the plots' screenshot beside the page's
+    axes = ticks_at_the_data_scale(page, "the position plots after the move")
+    print("position plots' y ticks:", {a["title"]: a["labels"] for a in axes})
+    page.locator(".uplot:visible").first.scroll_into_view_if_needed()
+    page.screenshot(path=str(shots / "dashboard_plots.png"), clip=plots_box(page))
 
     # pause stops simulated time, resume runs it again
     page.get_by_role("button", name="pause").click()

@@ -1,9 +1,11 @@
 """The dashboard's pure parts: a parameter's descriptor → its control (ranges, steps,
-choices, per-joint lists, read-only), the rolling window and its decimation, and the
-robots found from graph names. No browser, no ROS graph: descriptors are the
+choices, per-joint lists, read-only), the rolling window and its decimation, the plots'
+y axes, and the robots found from graph names. No browser, no ROS graph: descriptors are the
 rcl_interfaces messages a node's describe_parameters service answers."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
@@ -11,7 +13,13 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 
 from joint_space_control.dashboard import graph
 from joint_space_control.dashboard.controls import Control, choices, control_for
-from joint_space_control.dashboard.series import Window, decimate
+from joint_space_control.dashboard.series import (
+    LEAST_SPAN,
+    Y_INCREMENTS,
+    Window,
+    decimate,
+    spread,
+)
 
 JOINTS = ("joint1", "joint2")
 
@@ -120,6 +128,92 @@ def test_decimation_stays_within_the_budget_and_keeps_every_peak():
     assert td[0] == 0.0
     short_t, short_y = decimate(t[:10], y[:10], 300)
     assert len(short_t) == 10 and np.array_equal(short_y, y[:10])
+
+
+def uplot_ticks(low: float, high: float, height: float) -> list[str]:
+    """The y tick labels uPlot draws for data from ``low`` to ``high`` on a plot ``height``
+    px high with the page's axis options: its range (the data and 10 % more each side), the
+    smallest of ``Y_INCREMENTS`` at least 30 px apart, its multiples within the range,
+    written with at most 3 decimals (Intl.NumberFormat's default)."""
+    pad = 0.1 * (high - low)
+    low, high = low - pad, high + pad
+    step = next(i for i in Y_INCREMENTS if i * height / (high - low) >= 30)
+    ks = range(math.ceil(low / step - 1e-9), math.floor(high / step + 1e-9) + 1)
+    return [f"{k * step:,.3f}".rstrip("0").rstrip(".") for k in ks]
+
+
+def test_the_y_axis_ticks_are_never_finer_than_its_labels_write():
+    """uPlot writes tick labels with at most 3 decimals: its own spacings went down to
+    0.0001 ("-0, -0, 0" for a joint 0.1 mrad from 0). The page's are 1, 2 or 5 × 10ⁿ from
+    0.001 up, so the labels of two ticks always differ."""
+    assert list(Y_INCREMENTS) == sorted(Y_INCREMENTS) and Y_INCREMENTS[0] == 0.001
+    for incr in Y_INCREMENTS:
+        mantissa = incr / 10 ** math.floor(math.log10(incr))
+        assert min(abs(mantissa - m) for m in (1, 2, 5)) < 1e-9, incr
+        assert round(incr, 3) == incr  # written exactly with 3 decimals
+    assert Y_INCREMENTS[-1] >= 1e9  # torques, however large
+    # data spanning LEAST_SPAN or more, anywhere, on the page's plot (~110 px) or expanded
+    for low, span in [(-0.3, 0.0), (-0.3, 0.3), (0.0, 2e-4), (1000.0, 0.004), (-2000.0, 4000.0)]:
+        middle, half = low + span / 2, max(span, LEAST_SPAN) / 2
+        for height in (100, 110, 400, 700):
+            labels = uplot_ticks(middle - half, middle + half, height)
+            assert len(labels) >= 2 and len(set(labels)) == len(labels), (low, span, labels)
+
+
+def test_flat_data_is_spread_to_the_least_span_about_its_middle_wider_data_is_left():
+    rest = np.full(50, -0.3) + 1e-10 * np.sin(np.arange(50))  # a joint at rest
+    widened = spread([rest, np.full(50, np.nan)], 50)
+    assert widened.min() == pytest.approx(-0.3 - LEAST_SPAN / 2)
+    assert widened.max() == pytest.approx(-0.3 + LEAST_SPAN / 2)
+    moving = np.linspace(0.0, -0.3, 50)
+    left = spread([rest, moving], 50)
+    assert np.all((left >= -0.3 - 1e-9) & (left <= 0.0))  # within the data: no effect
+    assert np.array_equal(spread([np.full(3, np.nan)], 3), np.zeros(3))
+
+
+def test_the_plots_options_are_sent_once_and_flat_data_gets_an_axis_it_can_label():
+    """Every plot's last series, not drawn, spreads the data its y axis is ranged on; the
+    options are never sent again (viser builds a chart anew for new options, and one built
+    while its data streams in kept a time window the data had left: a blank plot), and the
+    padding is given (viser's default made it build the chart anew at every change of the
+    panel's width)."""
+    from types import SimpleNamespace
+    from unittest.mock import MagicMock
+
+    from joint_space_control.dashboard.page import (
+        PLOT_AXES,
+        PLOT_PADDING,
+        PLOT_SCALES,
+        RobotInfo,
+        RobotPanel,
+    )
+
+    plots = []
+
+    def add_uplot(data, series, **options):
+        plots.append(SimpleNamespace(data=data, series=series, **options))
+        return plots[-1]
+
+    server = MagicMock()
+    server.gui.add_uplot.side_effect = add_uplot
+    info = RobotInfo("", "robot", JOINTS, None, effort_limits=(2000.0, 1000.0))
+    panel = RobotPanel(server, MagicMock(), info, MagicMock(), budget=400)
+    assert len(plots) == 3 * len(JOINTS)
+    t = np.linspace(10.0, 20.0, 1001)
+    q = np.column_stack((np.full_like(t, -0.3) + 1e-10 * np.sin(t), np.linspace(0.0, -0.3, 1001)))
+    fields = ("q", "q_d", "error", "tau", "tau_feedback", "tau_model", "tau_gravity")
+    panel.show_signals(t, {f: q for f in fields})
+    for plot in plots:
+        assert plot.scales is PLOT_SCALES and plot.axes is PLOT_AXES  # sent once
+        assert plot.padding is PLOT_PADDING  # given: viser's default rebuilt the chart
+        assert PLOT_AXES[1]["incrs"] == Y_INCREMENTS and "range" not in PLOT_SCALES.get("y", {})
+        axis_series = plot.series[-1]
+        assert axis_series["width"] == 0 and not axis_series["points"]["show"]  # not drawn
+        assert len(plot.data) == len(plot.series)
+    position_at_rest, position_moving = (np.column_stack(p.data[1:]) for p in plots[:2])
+    assert np.ptp(position_at_rest) == pytest.approx(LEAST_SPAN)  # about -0.3
+    assert np.mean(position_at_rest) == pytest.approx(-0.3)
+    assert np.ptp(position_moving) == pytest.approx(0.3)  # left as it is
 
 
 TOPICS = [
