@@ -336,8 +336,6 @@ def run(
                 out,
                 options.watched_pairs,
                 options.watched_seconds,
-                options.realtime_robot,
-                options.realtime_law,
                 log,
                 measured,
             )

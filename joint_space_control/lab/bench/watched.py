@@ -1,12 +1,12 @@
 """The realtime loop while a person opens its page, and under CPU hogs: the bench's
 ``watched`` section.
 
-The loop is the ``realtime`` section's (1 kHz, the nodes' default ``thread_priority`` 50)
-with the controller on ``use_sim_time`` and the ``dashboard`` node running, as users run
-them. Each case is measured in alternating pairs: the middleware threads that deliver the
-nodes' messages left at normal scheduling (``middleware_priority: 0``) and at the nodes'
-default (one below ``thread_priority``, :func:`joint_space_control.scheduling.
-middleware_priority`). The cases:
+The loop is the README's first one (``planar_2dof``, PD + g) in realtime at 1 kHz, at the
+nodes' default ``thread_priority`` 50, with the controller on ``use_sim_time`` and the
+``dashboard`` node running, as users run them. Each case is measured in alternating
+pairs: the middleware threads that deliver the nodes' messages left at normal scheduling
+(``middleware_priority: 0``) and at the nodes' default (one below ``thread_priority``,
+:func:`joint_space_control.scheduling.middleware_priority`). The cases:
 
 - ``page``: Debian's Chromium (headless, default niceness, as a person's browser runs) is
   started on the page as the measurement starts, so the measurement holds the browser's
@@ -27,6 +27,8 @@ from typing import Any
 from joint_space_control.lab.bench import browser, ros
 from joint_space_control.lab.bench.dashboard import REALTIME_PRIORITY, SIM_TIME, Beside
 
+#: The README's first loop.
+ROBOT, LAW = "planar_2dof", "pd_gravity"
 #: The middleware's scheduling compared: normal, and the nodes' default.
 MIDDLEWARE = {"normal": 0, "default": -1}
 HOGS = 3
@@ -37,8 +39,6 @@ def watched(
     out: Path,
     pairs: int,
     seconds: float,
-    robot: str,
-    law: str,
     log: Callable[[str], None],
     measured: Callable[[str, Callable[[], Any]], Any] = lambda _name, part: part(),
 ) -> dict[str, Any]:
@@ -62,8 +62,8 @@ def watched(
                     f"watched_{case}_{label}",
                     lambda s=side, p=params, c=case, w=workdir: ros.realtime(
                         w,
-                        robot,
-                        law,
+                        ROBOT,
+                        LAW,
                         seconds,
                         log,
                         thread_priority=REALTIME_PRIORITY,
@@ -102,8 +102,8 @@ def watched(
                 "brakes": sum(r["brakes"] for r in chosen),
             }
     return {
-        "robot": robot,
-        "law": law,
+        "robot": ROBOT,
+        "law": LAW,
         "seconds": seconds,
         "hogs": HOGS,
         "page_missing": missing,
