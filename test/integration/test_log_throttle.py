@@ -26,6 +26,7 @@ PERIOD = 0.002  # [s] between two bad messages (~500 Hz)
 HELD_BACK = re.compile(r"\((\d+) more since the last report\)$")
 
 
+@pytest.mark.long  # seconds of faults at 500 Hz (make test-long): make test within 5 minutes
 def test_each_recurring_fault_of_a_controller_logs_one_line_a_second(rig):  # noqa: F811
     node = "inverse_dynamics_controller"
     # measured: a state without velocities is bad input

@@ -28,6 +28,7 @@ def run_with_change(make_loop, t_change: float) -> tuple[np.ndarray, np.ndarray]
     return t, q
 
 
+@pytest.mark.long  # two whole runs (make test-long): make test within 5 minutes
 def test_a_change_at_a_simulation_time_is_reproducible(make_loop):
     t1, q1 = run_with_change(make_loop, 0.4)
     t2, q2 = run_with_change(make_loop, 0.4)

@@ -193,6 +193,7 @@ def lockstep_run(workdir: Path) -> dict[str, list[tuple[int, list[float]]]]:
         rig.close()
 
 
+@pytest.mark.long  # two whole runs (make test-long): make test within 5 minutes
 def test_two_robots_in_one_lockstep_world_reach_their_setpoints_reproducibly(tmp_path):
     first = lockstep_run(tmp_path / "first")
     second = lockstep_run(tmp_path / "second")
