@@ -49,14 +49,15 @@ class RealtimeThreads:
         got (INFO), or once per node what was refused and what to grant (WARN)."""
         got = scheduling.configure_this_thread(thread, self.priority, self.cpus)
         self.threads[thread] = got
-        if not self._middleware_done:
-            self._middleware_done = True
-            self.configure_middleware()
         if got.refused:
             grant = f"; {scheduling.GRANT}" if "SCHED_FIFO" in got.refused else ""
             self._warn(f"realtime thread {got.text} ({got.refused}){grant}")
         else:
             self._node.get_logger().info(f"realtime thread {got.text}")
+        if not self._middleware_done and "SCHED_FIFO" not in got.refused:
+            # (refused for this thread, it is refused for the middleware's: said once)
+            self._middleware_done = True
+            self.configure_middleware()
         return got
 
     def configure_middleware(self) -> None:

@@ -2,7 +2,8 @@
 physics thread and command path and the controller's control path run at
 ``thread_priority`` (50 by default), as the OS reports for those very threads, and say so in
 the log and on /diagnostics; the executor thread runs at FIFO priority 1 (it holds the
-interpreter the realtime threads need: docs/performance.md), the other threads stay normal.
+interpreter the realtime threads need: docs/performance.md), the middleware's reception and
+event threads at ``middleware_priority`` (one below by default), the other threads normal.
 Where it is refused (here: the node started without CAP_SYS_NICE and with an rtprio limit of
 0), the node runs at normal scheduling and says once what to grant. No timing is judged
 here (jsc bench measures it)."""
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from joint_space_control.scheduling import fifo_permitted
+from joint_space_control.scheduling import MIDDLEWARE_THREADS, fifo_permitted
 
 from .conftest import GAINS
 from .test_faults import ROBOT, Rig, rig  # noqa: F401  (the fixture)
@@ -59,19 +60,47 @@ def test_realtime_threads_run_at_fifo_priority_when_permitted(rig: Rig):  # noqa
     assert status["scheduling.control_path.policy"] == "SCHED_FIFO"
     assert status["scheduling.control_path.priority"] == 50
 
-    # the OS's word, thread by thread: the named realtime threads at FIFO, the rest normal
+    # the OS's word, thread by thread: the named realtime threads at FIFO, the middleware's
+    # reception and event threads one below them, the rest normal
     plant = threads(sim.proc.pid)
     assert plant.pop("jsc-physics") == (os.SCHED_FIFO, 40)
     assert plant.pop("jsc-command-pat") == (os.SCHED_FIFO, 40)  # 15 characters
     assert plant.pop("jsc-executor") == (os.SCHED_FIFO, 1)  # the interpreter's other holder
+    assert pop_middleware(plant) == {(os.SCHED_FIFO, 39)}
     assert plant and all(policy == os.SCHED_OTHER for policy, _ in plant.values())
     control = threads(ctrl.proc.pid)
     assert control.pop("jsc-control-pat") == (os.SCHED_FIFO, 50)
     assert control.pop("jsc-executor") == (os.SCHED_FIFO, 1)
+    assert pop_middleware(control) == {(os.SCHED_FIFO, 49)}
     assert control and all(policy == os.SCHED_OTHER for policy, _ in control.values())
 
     assert "realtime thread physics: SCHED_FIFO priority 40" in sim.log()
     assert "realtime thread control path: SCHED_FIFO priority 50" in ctrl.log()
+    assert "SCHED_FIFO priority 39" in next(
+        line for line in sim.log().splitlines() if "middleware threads dds." in line
+    )
+    status = rig.diagnostics(SIM, lambda s: True)
+    assert status["scheduling.middleware.priority"] == 39
+    assert status["scheduling.middleware.threads"] >= 2  # a reception thread, the events
+
+
+def pop_middleware(threads_: dict[str, tuple[int, int]]) -> set[tuple[int, int]]:
+    """Take Fast DDS's reception and event threads out of ``threads_``: their (policy,
+    priority) settings; each kind must be there."""
+    names = [n for n in threads_ if MIDDLEWARE_THREADS.fullmatch(n)]
+    assert any(n.startswith("dds.ev.") for n in names), threads_
+    assert any(n.startswith(("dds.shm.", "dds.udp.")) for n in names), threads_
+    return {threads_.pop(n) for n in names}
+
+
+def test_middleware_priority_zero_leaves_the_middleware_threads_normal(rig: Rig):  # noqa: F811
+    sim = rig.group.start(SIM, {"robot": ROBOT, "mode": "realtime", "middleware_priority": 0})
+    rig.wait_for_publisher("joint_states")
+    status = rig.diagnostics(SIM, lambda s: "scheduling.physics.policy" in s)
+    assert status["scheduling.middleware.threads"] == 0
+    plant = threads(sim.proc.pid)
+    assert {plant[n] for n in plant if MIDDLEWARE_THREADS.fullmatch(n)} == {(os.SCHED_OTHER, 0)}
+    assert "middleware threads" not in sim.log()
 
 
 @pytest.mark.skipif(shutil.which("setpriv") is None, reason="setpriv (util-linux) not found")
