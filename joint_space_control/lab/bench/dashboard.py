@@ -167,7 +167,7 @@ class Beside:
                     stack.callback(lambda: self._browser and self._browser.close())
                 elif self.page:
                     self._browser = stack.enter_context(
-                        browser.page_open(f"http://127.0.0.1:{port}", nice=self.nice)
+                        browser.page_open(self._url, nice=self.nice)
                     )
             self._roots = {name: n.proc.pid for name, n in group.nodes.items()}
             try:
@@ -187,13 +187,9 @@ class Beside:
 
     def ready(self, check: Callable[[], None]) -> None:
         """Once the loop runs: until the page shows the robot's plots (the dashboard builds
-        a robot's panel on its first joint state), or :data:`SETTLE_S` without a page."""
-        if self.page and self.open_at_start:
-            deadline = time.monotonic() + self.SETTLE_S
-            while time.monotonic() < deadline:
-                check()
-                time.sleep(0.1)
-        elif self._browser is not None:
+        a robot's panel on its first joint state), or :data:`SETTLE_S` without a page (or
+        with ``open_at_start``: the browser starts with the measurement)."""
+        if self._browser is not None:
             try:
                 self._browser.wait_plotting()
             except browser.PageError as err:
