@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from joint_space_control.lab.bench import browser, ros
-from joint_space_control.lab.bench.dashboard import REALTIME_PRIORITY, SIM_TIME, Beside
+from joint_space_control.lab.bench.dashboard import REALTIME_PRIORITY, SIM_TIME, Beside, _median
 
 #: The README's first loop.
 ROBOT, LAW = "planar_2dof", "pd_gravity"
@@ -96,9 +96,7 @@ def watched(
             summary.setdefault(case, {})[label] = {
                 "runs": len(chosen),
                 "worst_on_time_fraction": min(r["on_time_fraction"] for r in chosen),
-                "median_on_time_fraction": sorted(r["on_time_fraction"] for r in chosen)[
-                    (len(chosen) - 1) // 2
-                ],
+                "median_on_time_fraction": _median([r["on_time_fraction"] for r in chosen]),
                 "brakes": sum(r["brakes"] for r in chosen),
             }
     return {
